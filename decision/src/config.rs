@@ -1,0 +1,369 @@
+//! Every tunable of the planner in one serde struct, loadable from TOML.
+//!
+//! Defaults are the paper's Table III and the project's `formulation.md`; where this
+//! project departs from them the field says why.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::ConfigError;
+
+/// The complete planner configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlannerConfig {
+    pub timing: Timing,
+    pub vehicle: VehicleGeometry,
+    pub ego: EgoModel,
+    pub idm: IdmParams,
+    pub prediction: Prediction,
+    pub perception: Perception,
+    pub hysteresis: Hysteresis,
+    pub cost: CostWeights,
+    pub recovery: Recovery,
+    pub solver: SolverSettings,
+}
+
+/// Decision period and horizon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Timing {
+    /// High-level period `T_h` in seconds.
+    pub step_s: f64,
+    /// Horizon `H` in steps.
+    pub horizon: usize,
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Self {
+            step_s: 0.4,
+            horizon: 3,
+        }
+    }
+}
+
+/// Vehicle body, shared by ego and SVs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VehicleGeometry {
+    pub length_m: f64,
+    pub width_m: f64,
+    /// A vehicle within this distance of a lane centre occupies that lane only; farther
+    /// off-centre it occupies both lanes it lies between.
+    pub lane_centre_tolerance_m: f64,
+}
+
+impl Default for VehicleGeometry {
+    fn default() -> Self {
+        Self {
+            length_m: 5.0,
+            width_m: 2.0,
+            lane_centre_tolerance_m: 0.1,
+        }
+    }
+}
+
+/// The hybrid kinematic maps `f^sigma` and the action set, used for the ego and the SVs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EgoModel {
+    /// Acceleration while decelerating (`beta = -1`), m/s^2.
+    pub decel_mps2: f64,
+    /// Acceleration while accelerating (`beta = +1`), m/s^2.
+    pub accel_mps2: f64,
+    /// Allow a lateral and a longitudinal change in the same step (9 actions instead of 5).
+    pub combined_actions: bool,
+}
+
+impl Default for EgoModel {
+    fn default() -> Self {
+        Self {
+            decel_mps2: -3.0,
+            accel_mps2: 1.5,
+            combined_actions: false,
+        }
+    }
+}
+
+/// Intelligent Driver Model parameters for the safety distance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IdmParams {
+    /// Jam distance `d0`, m.
+    pub jam_distance_m: f64,
+    /// Desired time headway `T`, s.
+    pub time_headway_s: f64,
+    /// Maximum acceleration `a`, m/s^2.
+    pub max_accel_mps2: f64,
+    /// Comfortable deceleration `b`, m/s^2.
+    pub comfort_decel_mps2: f64,
+}
+
+impl Default for IdmParams {
+    fn default() -> Self {
+        Self {
+            jam_distance_m: 2.0,
+            time_headway_s: 1.5,
+            max_accel_mps2: 1.5,
+            comfort_decel_mps2: 2.0,
+        }
+    }
+}
+
+/// The SV scenario tree and its uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Prediction {
+    /// Probability that an SV keeps its longitudinal maneuver in one step.
+    pub p_keep_long: f64,
+    /// Probability that an SV keeps its lane in one step.
+    pub p_keep_lat: f64,
+    /// Branches below this probability are pruned.
+    pub p_min: f64,
+    /// At most this many branches are kept per SV (`K`).
+    pub max_branches: usize,
+    /// `|a|` below this is read as cruising when estimating an SV's `beta`, m/s^2.
+    pub accel_dead_band_mps2: f64,
+    /// Diagonal of the process noise `Q` on `[x, y, v]` per step (m^2, m^2, m^2/s^2).
+    pub noise_diag: [f64; 3],
+    /// Tail probability `epsilon` of the chance constraint.
+    pub epsilon: f64,
+}
+
+impl Default for Prediction {
+    fn default() -> Self {
+        Self {
+            p_keep_long: 0.8,
+            p_keep_lat: 0.9,
+            p_min: 0.05,
+            max_branches: 4,
+            accel_dead_band_mps2: 0.3,
+            noise_diag: [0.25, 0.04, 0.25],
+            epsilon: 0.05,
+        }
+    }
+}
+
+/// Perception window and input capacity.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Perception {
+    /// SVs farther ahead than this (centre to centre) are ignored, m.
+    pub range_ahead_m: f64,
+    /// SVs farther behind than this are ignored, m.
+    pub range_behind_m: f64,
+    /// More SVs than this in one request is an error.
+    pub max_svs: usize,
+    /// Roads with more lanes than this are rejected.
+    pub max_lanes: u8,
+}
+
+impl Default for Perception {
+    fn default() -> Self {
+        Self {
+            range_ahead_m: 150.0,
+            range_behind_m: 80.0,
+            max_svs: 16,
+            max_lanes: 8,
+        }
+    }
+}
+
+/// Frozen-release hysteresis (paper III-D).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Hysteresis {
+    /// Off: no corrective regime, every SV gets the plain chance constraint (Case 2 baseline).
+    pub enabled: bool,
+    pub k_eps: f64,
+    pub eps_min_m: f64,
+    pub eps_max_m: f64,
+    pub gamma1: f64,
+    pub gamma2: f64,
+}
+
+impl Default for Hysteresis {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            k_eps: 0.5,
+            eps_min_m: 6.0,
+            eps_max_m: 22.0,
+            gamma1: 1.0,
+            gamma2: 1.4,
+        }
+    }
+}
+
+/// Objective weights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CostWeights {
+    /// `w_s`, per metre of hysteresis slack per step.
+    pub w_slack: f64,
+    /// `w_q`, per metre of global slack per step (Layer A).
+    pub w_global: f64,
+    /// `w_sigma` of a lane change, added to the longitudinal part.
+    pub w_lane_change: f64,
+    /// `w_sigma` of the next longitudinal state `[decelerate, cruise, accelerate]`.
+    pub w_beta: [f64; 3],
+    /// `w_v`, per m/s of `|v_des - v_h|` per step.
+    ///
+    /// `formulation.md` suggests 0.5, but with `a_acc T_h = 0.6 m/s` one accelerating step
+    /// gains at most `0.5 * 0.6 * 3 = 0.9 < w_beta[+1] = 1`, so a slow ego would never speed up.
+    /// At 1.0 a single accelerating step pays (`1.8 > 1`); see `docs/formulation-notes.md`.
+    pub w_speed: f64,
+}
+
+impl Default for CostWeights {
+    fn default() -> Self {
+        Self {
+            w_slack: 100.0,
+            w_global: 1.0e4,
+            w_lane_change: 4.0,
+            w_beta: [2.0, 0.0, 1.0],
+            w_speed: 1.0,
+        }
+    }
+}
+
+/// Layer A bound.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Recovery {
+    /// `gamma`: the global slack of a row is at most `gamma * d_idm`.
+    pub gamma: f64,
+}
+
+impl Default for Recovery {
+    fn default() -> Self {
+        Self { gamma: 0.1 }
+    }
+}
+
+/// Which backend solves the decision problem.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Backend {
+    /// The MILP on HiGHS.
+    #[default]
+    Milp,
+    /// Exhaustive enumeration of the ego's action sequences (the exact oracle).
+    Enumeration,
+}
+
+impl Backend {
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Milp => "milp",
+            Backend::Enumeration => "enumeration",
+        }
+    }
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SolverSettings {
+    pub backend: Backend,
+    /// HiGHS `time_limit` per solve, s. HiGHS may overrun it by some milliseconds, and it is
+    /// not checked in presolve; the service's watchdog enforces the real deadline.
+    pub time_limit_s: f64,
+    /// Offer HiGHS the best of the shifted previous plan and "keep everything" as incumbent.
+    pub warm_start: bool,
+    /// Tolerance when checking a plan against the exact constraints, m.
+    pub feasibility_tolerance: f64,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            backend: Backend::Milp,
+            time_limit_s: 0.3,
+            warm_start: true,
+            feasibility_tolerance: 1e-6,
+        }
+    }
+}
+
+impl PlannerConfig {
+    /// Parse a TOML document; missing fields take their defaults.
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        let config: PlannerConfig = toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Render as TOML (used to write the documented defaults).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).expect("config is always representable in TOML")
+    }
+
+    /// Standard-normal quantile `z_eps` for the configured `epsilon`.
+    pub fn z_epsilon(&self) -> f64 {
+        use statrs::distribution::{ContinuousCDF, Normal};
+        Normal::standard().inverse_cdf(1.0 - self.prediction.epsilon)
+    }
+
+    /// Reject settings that make the problem meaningless.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |field: &'static str, why: &'static str| Err(ConfigError::Invalid { field, why });
+        let t = &self.timing;
+        if !(t.step_s.is_finite() && t.step_s > 0.0) {
+            return bad("timing.step_s", "must be positive");
+        }
+        if !(1..=6).contains(&t.horizon) {
+            return bad("timing.horizon", "must be in 1..=6");
+        }
+        let e = &self.ego;
+        if !(e.decel_mps2 < 0.0 && e.accel_mps2 > 0.0) {
+            return bad("ego", "decel must be negative and accel positive");
+        }
+        let p = &self.prediction;
+        for (field, value) in [
+            ("prediction.p_keep_long", p.p_keep_long),
+            ("prediction.p_keep_lat", p.p_keep_lat),
+            ("prediction.p_min", p.p_min),
+        ] {
+            if !(0.0..=1.0).contains(&value) {
+                return Err(ConfigError::Invalid {
+                    field,
+                    why: "must be a probability",
+                });
+            }
+        }
+        if !(p.epsilon > 0.0 && p.epsilon < 0.5) {
+            return bad("prediction.epsilon", "must be in (0, 0.5)");
+        }
+        if p.max_branches == 0 {
+            return bad("prediction.max_branches", "must be at least 1");
+        }
+        if p.noise_diag.iter().any(|q| !(q.is_finite() && *q >= 0.0)) {
+            return bad("prediction.noise_diag", "must be finite and non-negative");
+        }
+        let h = &self.hysteresis;
+        if !(h.gamma1 < h.gamma2) {
+            return bad("hysteresis", "gamma1 must be below gamma2");
+        }
+        if !(h.eps_min_m <= h.eps_max_m) {
+            return bad("hysteresis", "eps_min_m must not exceed eps_max_m");
+        }
+        let c = &self.cost;
+        if !(c.w_global > c.w_slack && c.w_slack >= 0.0) {
+            return bad("cost.w_global", "must exceed cost.w_slack (w_q >> w_s)");
+        }
+        if c.w_beta.iter().chain([&c.w_lane_change, &c.w_speed]).any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return bad("cost", "weights must be finite and non-negative");
+        }
+        if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
+            return bad("recovery.gamma", "must be in (0, 1)");
+        }
+        if self.perception.max_lanes == 0 || self.perception.max_lanes > 16 {
+            return bad("perception.max_lanes", "must be in 1..=16");
+        }
+        if !(self.solver.time_limit_s > 0.0) {
+            return bad("solver.time_limit_s", "must be positive");
+        }
+        Ok(())
+    }
+}

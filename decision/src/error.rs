@@ -1,0 +1,53 @@
+//! Typed errors of the decision core.
+
+use thiserror::Error;
+
+/// Why a situation was rejected before any solving.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum InputError {
+    #[error("field `{field}` is not a finite number")]
+    NonFinite { field: &'static str },
+    #[error("field `{field}` is a negative speed ({value})")]
+    NegativeSpeed { field: &'static str, value: f64 },
+    #[error("road must have 1..={max} lanes, got {lanes}")]
+    LaneCount { lanes: u8, max: u8 },
+    #[error("field `{field}` must be positive, got {value}")]
+    NotPositive { field: &'static str, value: f64 },
+    #[error("{what} lane {lane} is outside 1..={lanes}")]
+    LaneOutOfRange { what: &'static str, lane: i64, lanes: u8 },
+    #[error("{what} longitudinal state {beta} is outside -1..=1")]
+    BetaOutOfRange { what: &'static str, beta: i8 },
+    #[error("SV id {id} appears more than once")]
+    DuplicateSvId { id: u32 },
+    #[error("{count} SVs exceed the capacity of {capacity}")]
+    TooManyVehicles { count: usize, capacity: usize },
+    #[error("planner memory is invalid: {why}")]
+    InvalidMemory { why: &'static str },
+}
+
+/// A configuration that cannot be used.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ConfigError {
+    #[error("cannot parse planner config: {0}")]
+    Parse(String),
+    #[error("invalid planner config `{field}`: {why}")]
+    Invalid { field: &'static str, why: &'static str },
+}
+
+/// Failure of the solver machinery itself (not infeasibility, which the layers handle).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SolverError {
+    #[error("HiGHS call `{call}` failed with status {status}")]
+    Highs { call: &'static str, status: i32 },
+}
+
+/// Anything `Planner::decide` can return instead of a decision.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum DecisionError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+}

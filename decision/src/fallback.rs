@@ -1,0 +1,166 @@
+//! Layer B: the deterministic fallback (paper eq. fallback_policy). It never fails.
+
+use crate::config::PlannerConfig;
+use crate::lanes::{lanes_at, LaneSet};
+use crate::types::{Beta, Situation, Threat};
+
+/// The fallback's choice: the new `beta` and the threat that decided it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FallbackChoice {
+    pub beta: Beta,
+    pub threat: Threat,
+    /// Id of the most critical SV, if any.
+    pub sv_id: Option<u32>,
+    /// Its time to collision, s (infinite when not closing).
+    pub ttc_s: f64,
+}
+
+/// Pick the most critical SV by time to collision among those sharing a lane with the ego
+/// (`occupancy0`): a front SV closing in means decelerate, a rear SV closing in means
+/// accelerate. With no closing SV in the ego's lanes, an SV alongside in an adjacent lane is
+/// a lateral risk: hold speed. With nothing at all, hold speed. The lateral command is left
+/// as it is (the target lane does not change), so a lane change under way completes.
+pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> FallbackChoice {
+    let ego = &s.ego;
+    let length = config.vehicle.length_m;
+    let tol = config.vehicle.lane_centre_tolerance_m;
+    let mut best: Option<(f64, u8, f64, Threat, u32)> = None; // (ttc, rank, gap, threat, id)
+    let mut lateral: Option<u32> = None;
+    for sv in &s.svs {
+        let dx = sv.x_m - ego.x_m;
+        if dx > config.perception.range_ahead_m || dx < -config.perception.range_behind_m {
+            continue;
+        }
+        let Ok(lanes) = lanes_at(&s.road, sv.y_m, tol) else {
+            continue;
+        };
+        if lanes.intersects(occupancy0) {
+            let (threat, rank, gap, closing) = if dx >= 0.0 {
+                (Threat::Front, 0, dx - length, ego.v_mps - sv.v_mps)
+            } else {
+                (Threat::Rear, 1, -dx - length, sv.v_mps - ego.v_mps)
+            };
+            let ttc = if gap <= 0.0 {
+                0.0
+            } else if closing > 0.0 {
+                gap / closing
+            } else {
+                f64::INFINITY
+            };
+            if ttc.is_finite() {
+                let key = (ttc, rank, gap, threat, sv.id);
+                let better = best.as_ref().is_none_or(|b| (key.0, key.1, key.2, key.4) < (b.0, b.1, b.2, b.4));
+                if better {
+                    best = Some(key);
+                }
+            }
+        } else {
+            let adjacent = lanes
+                .iter()
+                .any(|l| occupancy0.iter().any(|e| (i16::from(l) - i16::from(e)).abs() == 1));
+            if adjacent && dx.abs() < length && lateral.is_none_or(|id| sv.id < id) {
+                lateral = Some(sv.id);
+            }
+        }
+    }
+    match (best, lateral) {
+        (Some((ttc, _, _, threat, id)), _) => FallbackChoice {
+            beta: if threat == Threat::Front { -1 } else { 1 },
+            threat,
+            sv_id: Some(id),
+            ttc_s: ttc,
+        },
+        (None, Some(id)) => FallbackChoice {
+            beta: 0,
+            threat: Threat::Lateral,
+            sv_id: Some(id),
+            ttc_s: f64::INFINITY,
+        },
+        (None, None) => FallbackChoice {
+            beta: 0,
+            threat: Threat::None,
+            sv_id: None,
+            ttc_s: f64::INFINITY,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::{EgoState, Maneuver, PlannerMemory, Road, SvObservation};
+
+    fn situation(svs: Vec<SvObservation>) -> Situation {
+        Situation {
+            road: Road {
+                lanes: 3,
+                lane_width_m: 4.0,
+                speed_limit_mps: 40.0,
+            },
+            ego: EgoState {
+                x_m: 100.0,
+                y_m: 4.0,
+                v_mps: 20.0,
+                desired_speed_mps: 25.0,
+                maneuver: Maneuver { lane: 2, beta: 0 },
+            },
+            svs,
+            memory: PlannerMemory::default(),
+        }
+    }
+
+    fn sv(id: u32, x: f64, y: f64, v: f64) -> SvObservation {
+        SvObservation {
+            id,
+            x_m: x,
+            y_m: y,
+            v_mps: v,
+            a_mps2: 0.0,
+        }
+    }
+
+    #[test]
+    fn front_closing_brakes() {
+        let c = PlannerConfig::default();
+        // Gap 15 m, closing 5 m/s: TTC 3 s. Rear SV: gap 25 m, closing 2 m/s: TTC 12.5 s.
+        let s = situation(vec![sv(1, 120.0, 4.0, 15.0), sv(2, 70.0, 4.0, 22.0)]);
+        let f = choose(&c, &s, LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
+        assert!((f.ttc_s - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rear_closing_faster_accelerates() {
+        let c = PlannerConfig::default();
+        // Front: gap 45, closing 1 -> 45 s. Rear: gap 10, closing 10 -> 1 s.
+        let s = situation(vec![sv(1, 150.0, 4.0, 19.0), sv(2, 85.0, 4.0, 30.0)]);
+        let f = choose(&c, &s, LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (1, Threat::Rear, Some(2)));
+        assert!((f.ttc_s - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lateral_alongside_holds_speed() {
+        let c = PlannerConfig::default();
+        // Alongside in lane 1 (y = 8), nothing closing in lane 2.
+        let s = situation(vec![sv(4, 102.0, 8.0, 20.0), sv(5, 160.0, 4.0, 25.0)]);
+        let f = choose(&c, &s, LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (0, Threat::Lateral, Some(4)));
+    }
+
+    #[test]
+    fn nothing_holds_speed() {
+        let c = PlannerConfig::default();
+        let f = choose(&c, &situation(vec![sv(1, 400.0, 4.0, 1.0)]), LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (0, Threat::None, None));
+    }
+
+    #[test]
+    fn an_sv_between_lanes_counts_in_both() {
+        let c = PlannerConfig::default();
+        // y = 6 lies between lanes 1 and 2; it shares lane 2 with the ego and is closing.
+        let s = situation(vec![sv(9, 115.0, 6.0, 10.0)]);
+        let f = choose(&c, &s, LaneSet::single(2));
+        assert_eq!((f.beta, f.threat), (-1, Threat::Front));
+    }
+}

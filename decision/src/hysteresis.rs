@@ -1,0 +1,94 @@
+//! Frozen-release hysteresis refresh (paper III-D), per SV.
+
+use crate::idm::Thresholds;
+use crate::types::CorrectiveEntry;
+
+/// New corrective state of one SV.
+///
+/// `min_gap` is the smallest predicted gap to the SV over the horizon and its kept branches,
+/// on the ego's nominal rollout (keep lane and `beta`), counting only steps where the SV is
+/// ahead in a lane the ego occupies; `None` when it never is.
+///
+/// Trigger when some gap falls below the *current* trigger distance (thresholds are frozen at
+/// that moment; a re-trigger keeps the original freeze). Release when every gap reaches the
+/// *frozen* release distance, or when the SV is no longer ahead in the ego's lane.
+pub fn refresh(
+    sv_id: u32,
+    previous: Option<CorrectiveEntry>,
+    min_gap: Option<f64>,
+    current: Thresholds,
+) -> Option<CorrectiveEntry> {
+    let gap = min_gap?;
+    if gap < current.trigger {
+        return Some(previous.unwrap_or(CorrectiveEntry {
+            sv_id,
+            release_m: current.release,
+            trigger_m: current.trigger,
+        }));
+    }
+    match previous {
+        Some(frozen) if gap >= frozen.release_m => None,
+        other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(trigger: f64, release: f64) -> Thresholds {
+        Thresholds {
+            band: release - trigger,
+            trigger,
+            release,
+        }
+    }
+
+    #[test]
+    fn triggers_below_the_trigger_distance_and_freezes() {
+        let e = refresh(7, None, Some(29.0), t(30.0, 36.0)).unwrap();
+        assert_eq!((e.sv_id, e.trigger_m, e.release_m), (7, 30.0, 36.0));
+        // Still closer than the (now smaller) trigger: the freeze from the first trigger stays.
+        let again = refresh(7, Some(e), Some(20.0), t(25.0, 29.0)).unwrap();
+        assert_eq!(again, e);
+    }
+
+    #[test]
+    fn does_not_trigger_at_or_above_the_trigger_distance() {
+        assert_eq!(refresh(1, None, Some(30.0), t(30.0, 36.0)), None);
+    }
+
+    #[test]
+    fn stays_corrective_inside_the_band() {
+        let frozen = CorrectiveEntry {
+            sv_id: 1,
+            release_m: 36.0,
+            trigger_m: 30.0,
+        };
+        // Above the current trigger but below the frozen release: keep.
+        assert_eq!(refresh(1, Some(frozen), Some(33.0), t(28.0, 31.0)), Some(frozen));
+    }
+
+    #[test]
+    fn releases_against_the_frozen_distance_not_the_current_one() {
+        let frozen = CorrectiveEntry {
+            sv_id: 1,
+            release_m: 36.0,
+            trigger_m: 30.0,
+        };
+        // The ego slowed, so the current release (31) is below the gap (33): the frozen
+        // release (36) still holds it in corrective mode.
+        assert_eq!(refresh(1, Some(frozen), Some(33.0), t(26.0, 31.0)), Some(frozen));
+        assert_eq!(refresh(1, Some(frozen), Some(36.0), t(26.0, 31.0)), None);
+    }
+
+    #[test]
+    fn releases_when_no_longer_ahead_in_the_ego_lane() {
+        let frozen = CorrectiveEntry {
+            sv_id: 1,
+            release_m: 36.0,
+            trigger_m: 30.0,
+        };
+        assert_eq!(refresh(1, Some(frozen), None, t(30.0, 36.0)), None);
+    }
+}

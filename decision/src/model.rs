@@ -1,0 +1,239 @@
+//! The HMDP of one vehicle: action set, `clip`-pruned transitions and the hybrid
+//! kinematic maps `f^sigma`. Shared by the ego's plans and the SVs' scenario tree.
+
+use crate::config::PlannerConfig;
+use crate::lanes::LaneSet;
+use crate::types::{Action, Beta, Maneuver};
+
+const ONE_STEP: [Action; 5] = [
+    Action { lateral: 0, longitudinal: 0 },
+    Action { lateral: -1, longitudinal: 0 },
+    Action { lateral: 1, longitudinal: 0 },
+    Action { lateral: 0, longitudinal: -1 },
+    Action { lateral: 0, longitudinal: 1 },
+];
+
+const COMBINED: [Action; 9] = [
+    Action { lateral: 0, longitudinal: 0 },
+    Action { lateral: -1, longitudinal: 0 },
+    Action { lateral: 1, longitudinal: 0 },
+    Action { lateral: 0, longitudinal: -1 },
+    Action { lateral: 0, longitudinal: 1 },
+    Action { lateral: -1, longitudinal: -1 },
+    Action { lateral: -1, longitudinal: 1 },
+    Action { lateral: 1, longitudinal: -1 },
+    Action { lateral: 1, longitudinal: 1 },
+];
+
+/// The admissible actions, "keep" first.
+pub fn action_set(combined: bool) -> &'static [Action] {
+    if combined {
+        &COMBINED
+    } else {
+        &ONE_STEP
+    }
+}
+
+/// Maneuver transition with `clip`: `None` when the action leaves `1..=lanes` or `{-1,0,1}`
+/// (the action is discarded, never saturated).
+pub fn transition(m: Maneuver, d: Action, lanes: u8) -> Option<Maneuver> {
+    let lane = i16::from(m.lane) + i16::from(d.lateral);
+    let beta = m.beta + d.longitudinal;
+    if lane < 1 || lane > i16::from(lanes) || !(-1..=1).contains(&beta) {
+        return None;
+    }
+    Some(Maneuver {
+        lane: lane as u8,
+        beta,
+    })
+}
+
+/// Longitudinal kinematics of the maps `f^sigma`.
+#[derive(Debug, Clone, Copy)]
+pub struct Kinematics {
+    pub dt: f64,
+    /// Acceleration for `beta = -1, 0, +1`.
+    pub accel: [f64; 3],
+}
+
+impl Kinematics {
+    pub fn new(config: &PlannerConfig) -> Self {
+        Self {
+            dt: config.timing.step_s,
+            accel: [config.ego.decel_mps2, 0.0, config.ego.accel_mps2],
+        }
+    }
+
+    pub fn accel_of(&self, beta: Beta) -> f64 {
+        self.accel[(beta + 1) as usize]
+    }
+
+    /// One step of `f^sigma`: the acceleration is that of the *next* maneuver state.
+    pub fn step(&self, x: f64, v: f64, beta_next: Beta) -> (f64, f64) {
+        let a = self.accel_of(beta_next);
+        (x + v * self.dt + 0.5 * a * self.dt * self.dt, v + a * self.dt)
+    }
+}
+
+/// One action sequence over the horizon, rolled out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rollout {
+    pub actions: Vec<Action>,
+    /// Maneuver after each step (`m_1..m_H`).
+    pub maneuvers: Vec<Maneuver>,
+    /// Position and speed after each step.
+    pub x: Vec<f64>,
+    pub v: Vec<f64>,
+    /// Lanes occupied after each step: the initial lanes plus every lane targeted so far,
+    /// because a lane change (`T_lc` = 3 s) outlasts the horizon.
+    pub occupancy: Vec<LaneSet>,
+}
+
+/// Roll a given action sequence out; `None` if `clip` discards one of its actions.
+pub fn rollout(
+    kin: &Kinematics,
+    lanes: u8,
+    start: Maneuver,
+    x0: f64,
+    v0: f64,
+    occupancy0: LaneSet,
+    actions: &[Action],
+) -> Option<Rollout> {
+    let h = actions.len();
+    let mut out = Rollout {
+        actions: actions.to_vec(),
+        maneuvers: Vec::with_capacity(h),
+        x: Vec::with_capacity(h),
+        v: Vec::with_capacity(h),
+        occupancy: Vec::with_capacity(h),
+    };
+    let (mut m, mut x, mut v, mut occ) = (start, x0, v0, occupancy0);
+    for &d in actions {
+        m = transition(m, d, lanes)?;
+        (x, v) = kin.step(x, v, m.beta);
+        occ = occ.with(m.lane);
+        out.maneuvers.push(m);
+        out.x.push(x);
+        out.v.push(v);
+        out.occupancy.push(occ);
+    }
+    Some(out)
+}
+
+/// Every `clip`-admissible action sequence of length `horizon`, in lexicographic order of
+/// the action set (so "keep, keep, ..." is first).
+pub fn admissible_sequences(start: Maneuver, lanes: u8, horizon: usize, combined: bool) -> Vec<Vec<Action>> {
+    let set = action_set(combined);
+    let mut out = Vec::new();
+    let mut prefix = Vec::with_capacity(horizon);
+    fn recurse(
+        m: Maneuver,
+        lanes: u8,
+        left: usize,
+        set: &[Action],
+        prefix: &mut Vec<Action>,
+        out: &mut Vec<Vec<Action>>,
+    ) {
+        if left == 0 {
+            out.push(prefix.clone());
+            return;
+        }
+        for &d in set {
+            if let Some(next) = transition(m, d, lanes) {
+                prefix.push(d);
+                recurse(next, lanes, left - 1, set, prefix, out);
+                prefix.pop();
+            }
+        }
+    }
+    recurse(start, lanes, horizon, set, &mut prefix, &mut out);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(lane: u8, beta: Beta) -> Maneuver {
+        Maneuver { lane, beta }
+    }
+
+    #[test]
+    fn clip_discards_rather_than_saturates() {
+        assert_eq!(transition(m(1, 0), Action { lateral: -1, longitudinal: 0 }, 2), None);
+        assert_eq!(transition(m(2, 0), Action { lateral: 1, longitudinal: 0 }, 2), None);
+        assert_eq!(transition(m(1, 1), Action { lateral: 0, longitudinal: 1 }, 2), None);
+        assert_eq!(
+            transition(m(2, 1), Action { lateral: -1, longitudinal: 0 }, 2),
+            Some(m(1, 1))
+        );
+    }
+
+    #[test]
+    fn sequence_counts() {
+        // Middle lane of 3, cruising: all 5 actions admissible at every step of 1.
+        assert_eq!(admissible_sequences(m(2, 0), 3, 1, false).len(), 5);
+        let all = admissible_sequences(m(2, 0), 5, 3, false);
+        // In 5 lanes, starting from lane 3 cruising, only the beta bound prunes:
+        // beta sequences with |beta| <= 1 at each step.
+        let wide = admissible_sequences(m(3, 0), 5, 1, true);
+        assert_eq!(wide.len(), 9);
+        assert_eq!(all[0], vec![Action::KEEP; 3]);
+    }
+
+    #[test]
+    fn exhaustive_count_matches_brute_force() {
+        for lanes in 1..=4u8 {
+            for lane in 1..=lanes {
+                for beta in -1..=1 {
+                    let start = m(lane, beta);
+                    let mut brute = 0;
+                    for a in 0..5 {
+                        for b in 0..5 {
+                            for c in 0..5 {
+                                let seq = [ONE_STEP[a], ONE_STEP[b], ONE_STEP[c]];
+                                let mut cur = Some(start);
+                                for d in seq {
+                                    cur = cur.and_then(|s| transition(s, d, lanes));
+                                }
+                                brute += usize::from(cur.is_some());
+                            }
+                        }
+                    }
+                    assert_eq!(admissible_sequences(start, lanes, 3, false).len(), brute);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn kinematic_map_uses_next_beta() {
+        let kin = Kinematics {
+            dt: 0.4,
+            accel: [-3.0, 0.0, 1.5],
+        };
+        let (x, v) = kin.step(100.0, 20.0, 1);
+        assert!((x - (100.0 + 8.0 + 0.5 * 1.5 * 0.16)).abs() < 1e-12);
+        assert!((v - 20.6).abs() < 1e-12);
+        let (x, v) = kin.step(0.0, 10.0, -1);
+        assert!((x - (4.0 - 0.24)).abs() < 1e-12);
+        assert!((v - 8.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn occupancy_keeps_the_origin_lane_after_a_change() {
+        let kin = Kinematics {
+            dt: 0.4,
+            accel: [-3.0, 0.0, 1.5],
+        };
+        let left = Action {
+            lateral: -1,
+            longitudinal: 0,
+        };
+        let r = rollout(&kin, 3, m(2, 0), 0.0, 10.0, LaneSet::single(2), &[Action::KEEP, left, Action::KEEP]).unwrap();
+        assert_eq!(r.occupancy[0], LaneSet::single(2));
+        assert_eq!(r.occupancy[1], LaneSet::single(1).with(2));
+        assert_eq!(r.occupancy[2], LaneSet::single(1).with(2));
+        assert_eq!(r.maneuvers[2], m(1, 0));
+    }
+}

@@ -1,0 +1,248 @@
+//! The entry point: Algorithm 1 of the paper, one decision per call.
+
+use std::time::Instant;
+
+use crate::config::{Backend, PlannerConfig};
+use crate::enumeration;
+use crate::error::DecisionError;
+use crate::evaluate::{Evaluation, Mode};
+use crate::fallback;
+use crate::highs_solver::InterruptHandle;
+use crate::milp::MilpBackend;
+use crate::model::transition;
+use crate::problem::{prepare, Problem};
+use crate::types::{Action, Decision, Layer, Maneuver, PlanStep, Situation, SolveStats};
+use crate::validate::validate;
+
+/// A planner: configuration plus, for the MILP backend, one long-lived HiGHS instance.
+/// It holds no decision state — the memory travels in `Situation` and `Decision` — but it
+/// is tied to the thread that created it (HiGHS keeps per-thread state).
+pub struct Planner {
+    config: PlannerConfig,
+    milp: Option<MilpBackend>,
+}
+
+struct LayerResult {
+    evaluation: Option<Evaluation>,
+    stopped: bool,
+}
+
+impl Planner {
+    pub fn new(config: PlannerConfig) -> Result<Self, DecisionError> {
+        config.validate()?;
+        let milp = match config.solver.backend {
+            Backend::Milp => Some(MilpBackend::new(config.solver.time_limit_s)?),
+            Backend::Enumeration => None,
+        };
+        Ok(Self { config, milp })
+    }
+
+    pub fn config(&self) -> &PlannerConfig {
+        &self.config
+    }
+
+    /// Handle to stop a running MILP solve from another thread (`None` for enumeration).
+    pub fn interrupt_handle(&self) -> Option<InterruptHandle> {
+        self.milp.as_ref().map(MilpBackend::interrupt_handle)
+    }
+
+    /// Id the next HiGHS solve will carry; a decision may run two (nominal, Layer A).
+    pub fn next_solve_id(&self) -> Option<u64> {
+        self.milp.as_ref().map(MilpBackend::next_solve_id)
+    }
+
+    /// Per-solve time limit of HiGHS, s.
+    pub fn set_time_limit(&mut self, seconds: f64) -> Result<(), DecisionError> {
+        if let Some(m) = self.milp.as_mut() {
+            m.set_time_limit(seconds)?;
+        }
+        Ok(())
+    }
+
+    /// Decide: validate, refresh hysteresis, build the problem, solve the nominal MPC, then
+    /// Layer A if it is infeasible, then Layer B if that is infeasible too.
+    pub fn decide(&mut self, situation: &Situation) -> Result<Decision, DecisionError> {
+        let started = Instant::now();
+        validate(&self.config, situation)?;
+        let prepared = prepare(&self.config, situation);
+        let problem = &prepared.problem;
+        let mut stats = SolveStats {
+            backend: self.config.solver.backend,
+            total_us: 0,
+            solve_us: 0,
+            svs_considered: problem.svs.len(),
+            branches: problem.svs.iter().map(|c| c.branches.len()).sum(),
+            corrective_svs: prepared.memory.corrective.len(),
+            cost: None,
+            solver_objective: None,
+            rows: 0,
+            columns: 0,
+            binaries: 0,
+            nodes: 0,
+            sequences: 0,
+            warm_start: false,
+            interrupted: false,
+            fallback_threat: None,
+        };
+        let warm = self.warm_candidates(situation);
+        let solve_started = Instant::now();
+        let mut layer = Layer::Nominal;
+        let mut result = self.solve_layer(problem, Mode::Nominal, &warm, &mut stats)?;
+        if result.evaluation.is_none() && !result.stopped {
+            layer = Layer::GlobalRelaxation;
+            result = self.solve_layer(problem, Mode::Relaxed, &warm, &mut stats)?;
+        }
+        stats.solve_us = solve_started.elapsed().as_micros() as u64;
+        stats.interrupted = result.stopped;
+
+        let mut memory = prepared.memory.clone();
+        let decision = match result.evaluation {
+            Some(e) => {
+                stats.cost = Some(e.cost);
+                memory.previous_plan = e.rollout.actions.clone();
+                let plan: Vec<PlanStep> = (0..e.rollout.actions.len())
+                    .map(|h| PlanStep {
+                        action: e.rollout.actions[h],
+                        maneuver: e.rollout.maneuvers[h],
+                        x_m: e.rollout.x[h],
+                        v_mps: e.rollout.v[h],
+                        occupied_lanes: e.rollout.occupancy[h].0,
+                    })
+                    .collect();
+                Decision {
+                    action: plan[0].action,
+                    next_maneuver: plan[0].maneuver,
+                    plan,
+                    layer,
+                    stats,
+                    memory,
+                }
+            }
+            None => fallback_decision(&self.config, situation, problem, stats, memory),
+        };
+        let mut decision = decision;
+        decision.stats.total_us = started.elapsed().as_micros() as u64;
+        Ok(decision)
+    }
+
+    /// The previous plan shifted by one step, and "keep everything".
+    fn warm_candidates(&self, s: &Situation) -> Vec<Vec<Action>> {
+        let h = self.config.timing.horizon;
+        let mut out = vec![vec![Action::KEEP; h]];
+        let prev = &s.memory.previous_plan;
+        if prev.len() > 1 {
+            let mut shifted: Vec<Action> = prev[1..].to_vec();
+            shifted.resize(h, Action::KEEP);
+            out.insert(0, shifted);
+        }
+        out
+    }
+
+    fn solve_layer(
+        &mut self,
+        problem: &Problem,
+        mode: Mode,
+        warm: &[Vec<Action>],
+        stats: &mut SolveStats,
+    ) -> Result<LayerResult, DecisionError> {
+        match self.milp.as_mut() {
+            Some(milp) => {
+                let out = milp.solve(problem, mode, if self.config.solver.warm_start { warm } else { &[] })?;
+                stats.rows = out.rows;
+                stats.columns = out.columns;
+                stats.binaries = out.binaries;
+                stats.nodes += out.nodes;
+                stats.warm_start |= out.warm_start;
+                stats.solver_objective = out.solver_objective;
+                Ok(LayerResult {
+                    evaluation: out.evaluation,
+                    stopped: out.stopped,
+                })
+            }
+            None => {
+                let (evaluation, count) = enumeration::solve(problem, mode);
+                stats.sequences += count;
+                Ok(LayerResult {
+                    evaluation,
+                    stopped: false,
+                })
+            }
+        }
+    }
+}
+
+/// Layer B's decision: keep the target lane, set `beta` from the most critical threat.
+pub(crate) fn fallback_decision(
+    config: &PlannerConfig,
+    situation: &Situation,
+    problem: &Problem,
+    mut stats: SolveStats,
+    mut memory: crate::types::PlannerMemory,
+) -> Decision {
+    let choice = fallback::choose(config, situation, problem.occupancy0);
+    stats.fallback_threat = Some(choice.threat);
+    memory.previous_plan.clear();
+    let start = situation.ego.maneuver;
+    let next = Maneuver {
+        lane: start.lane,
+        beta: choice.beta,
+    };
+    let first = Action {
+        lateral: 0,
+        longitudinal: choice.beta - start.beta,
+    };
+    let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);
+    let mut occupancy = problem.occupancy0;
+    let plan = (0..config.timing.horizon)
+        .map(|h| {
+            (x, v) = problem.kin.step(x, v, next.beta);
+            v = v.clamp(0.0, problem.speed_cap);
+            occupancy = occupancy.with(next.lane);
+            PlanStep {
+                action: if h == 0 { first } else { Action::KEEP },
+                maneuver: next,
+                x_m: x,
+                v_mps: v,
+                occupied_lanes: occupancy.0,
+            }
+        })
+        .collect();
+    debug_assert!(transition(next, Action::KEEP, problem.lanes).is_some());
+    Decision {
+        action: first,
+        next_maneuver: next,
+        plan,
+        layer: Layer::Fallback,
+        stats,
+        memory,
+    }
+}
+
+/// The fallback decision for a situation, without solving: what a watchdog answers when a
+/// solve overruns. Validates like `decide`.
+pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<Decision, DecisionError> {
+    let started = Instant::now();
+    validate(config, situation)?;
+    let prepared = prepare(config, situation);
+    let stats = SolveStats {
+        backend: config.solver.backend,
+        total_us: 0,
+        solve_us: 0,
+        svs_considered: prepared.problem.svs.len(),
+        branches: 0,
+        corrective_svs: prepared.memory.corrective.len(),
+        cost: None,
+        solver_objective: None,
+        rows: 0,
+        columns: 0,
+        binaries: 0,
+        nodes: 0,
+        sequences: 0,
+        warm_start: false,
+        interrupted: true,
+        fallback_threat: None,
+    };
+    let mut d = fallback_decision(config, situation, &prepared.problem, stats, prepared.memory.clone());
+    d.stats.total_us = started.elapsed().as_micros() as u64;
+    Ok(d)
+}

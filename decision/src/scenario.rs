@@ -1,0 +1,251 @@
+//! SV prediction as a pruned scenario tree with Gaussian noise (paper III-B).
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::config::PlannerConfig;
+use crate::lanes::LaneSet;
+use crate::model::{action_set, transition, Kinematics};
+use crate::types::{Action, Beta, Maneuver};
+
+/// One retained branch of an SV's tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Branch {
+    /// Probability after pruning and renormalisation.
+    pub probability: f64,
+    pub actions: Vec<Action>,
+    pub maneuvers: Vec<Maneuver>,
+    /// Mean position and speed after each step.
+    pub x: Vec<f64>,
+    pub v: Vec<f64>,
+    /// Lanes occupied after each step.
+    pub occupancy: Vec<LaneSet>,
+}
+
+/// `beta` of an SV read from its measured acceleration, with a dead band around zero.
+pub fn beta_from_accel(a: f64, dead_band: f64) -> Beta {
+    if a.abs() < dead_band {
+        0
+    } else if a > 0.0 {
+        1
+    } else {
+        -1
+    }
+}
+
+/// One-step probabilities of the admissible actions from `m`: lateral and longitudinal keep
+/// probabilities, the remainder split evenly over the admissible neighbours, the product
+/// restricted to the action set and renormalised.
+pub fn action_probabilities(config: &PlannerConfig, m: Maneuver, lanes: u8) -> Vec<(Action, Maneuver, f64)> {
+    let p = &config.prediction;
+    let lateral = |d: i8| if d == 0 { p.p_keep_lat } else { (1.0 - p.p_keep_lat) / 2.0 };
+    let longitudinal = |d: i8| if d == 0 { p.p_keep_long } else { (1.0 - p.p_keep_long) / 2.0 };
+    let mut out: Vec<(Action, Maneuver, f64)> = action_set(config.ego.combined_actions)
+        .iter()
+        .filter_map(|&d| transition(m, d, lanes).map(|next| (d, next, lateral(d.lateral) * longitudinal(d.longitudinal))))
+        .collect();
+    let total: f64 = out.iter().map(|(_, _, w)| w).sum();
+    for entry in &mut out {
+        entry.2 /= total;
+    }
+    out
+}
+
+/// Roll the SV's HMDP over the horizon, prune branches below `p_min`, keep the `K` most
+/// probable (ties in action-set order) and renormalise. The most probable branch is always
+/// kept, so a prediction never vanishes.
+pub fn predict_branches(
+    config: &PlannerConfig,
+    kin: &Kinematics,
+    lanes: u8,
+    start: Maneuver,
+    x0: f64,
+    v0: f64,
+    occupancy0: LaneSet,
+) -> Vec<Branch> {
+    let horizon = config.timing.horizon;
+    let mut leaves = Vec::new();
+    let mut current = Branch {
+        probability: 1.0,
+        actions: Vec::with_capacity(horizon),
+        maneuvers: Vec::with_capacity(horizon),
+        x: Vec::with_capacity(horizon),
+        v: Vec::with_capacity(horizon),
+        occupancy: Vec::with_capacity(horizon),
+    };
+    #[allow(clippy::too_many_arguments)]
+    fn grow(
+        config: &PlannerConfig,
+        kin: &Kinematics,
+        lanes: u8,
+        m: Maneuver,
+        x: f64,
+        v: f64,
+        occ: LaneSet,
+        left: usize,
+        current: &mut Branch,
+        leaves: &mut Vec<Branch>,
+    ) {
+        if left == 0 {
+            leaves.push(current.clone());
+            return;
+        }
+        for (d, next, p) in action_probabilities(config, m, lanes) {
+            let (x1, v1) = kin.step(x, v, next.beta);
+            // An SV's speed never goes negative: a braking branch that would reverse is not a
+            // physical outcome, so it is dropped like a clipped action.
+            if v1 < 0.0 {
+                continue;
+            }
+            let occ1 = occ.with(next.lane);
+            let saved = current.probability;
+            current.probability *= p;
+            current.actions.push(d);
+            current.maneuvers.push(next);
+            current.x.push(x1);
+            current.v.push(v1);
+            current.occupancy.push(occ1);
+            grow(config, kin, lanes, next, x1, v1, occ1, left - 1, current, leaves);
+            current.probability = saved;
+            current.actions.pop();
+            current.maneuvers.pop();
+            current.x.pop();
+            current.v.pop();
+            current.occupancy.pop();
+        }
+    }
+    grow(config, kin, lanes, start, x0, v0, occupancy0, horizon, &mut current, &mut leaves);
+    // Stable sort keeps action-set order among equal probabilities.
+    leaves.sort_by(|a, b| b.probability.total_cmp(&a.probability));
+    let p_min = config.prediction.p_min;
+    let mut kept: Vec<Branch> = leaves
+        .iter()
+        .enumerate()
+        .filter(|(i, b)| *i == 0 || b.probability >= p_min)
+        .map(|(_, b)| b.clone())
+        .take(config.prediction.max_branches)
+        .collect();
+    let total: f64 = kept.iter().map(|b| b.probability).sum();
+    for b in &mut kept {
+        b.probability /= total;
+    }
+    kept
+}
+
+/// Longitudinal variance `Sigma_Delta(h)` for `h = 1..=H`: `Sigma' = A Sigma A^T + Q` on
+/// `[x, y, v]` from a known initial state. The maps differ only in their input, so every
+/// branch shares the same covariance.
+pub fn longitudinal_variances(config: &PlannerConfig) -> Vec<f64> {
+    let dt = config.timing.step_s;
+    let a = Matrix3::new(1.0, 0.0, dt, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+    let q = Matrix3::from_diagonal(&Vector3::from(config.prediction.noise_diag));
+    let mut sigma = Matrix3::zeros();
+    (0..config.timing.horizon)
+        .map(|_| {
+            sigma = a * sigma * a.transpose() + q;
+            sigma[(0, 0)]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kin() -> Kinematics {
+        Kinematics {
+            dt: 0.4,
+            accel: [-3.0, 0.0, 1.5],
+        }
+    }
+
+    #[test]
+    fn beta_dead_band() {
+        assert_eq!(beta_from_accel(0.29, 0.3), 0);
+        assert_eq!(beta_from_accel(-0.29, 0.3), 0);
+        assert_eq!(beta_from_accel(0.31, 0.3), 1);
+        assert_eq!(beta_from_accel(-1.0, 0.3), -1);
+    }
+
+    #[test]
+    fn one_step_probabilities_by_hand() {
+        let c = PlannerConfig::default();
+        // Middle lane of 3, cruising: weights keep 0.9*0.8 = 0.72, left/right 0.05*0.8 = 0.04,
+        // decel/accel 0.9*0.1 = 0.09; total 0.98.
+        let probs = action_probabilities(&c, Maneuver { lane: 2, beta: 0 }, 3);
+        assert_eq!(probs.len(), 5);
+        assert!((probs[0].2 - 0.72 / 0.98).abs() < 1e-12);
+        assert!((probs[1].2 - 0.04 / 0.98).abs() < 1e-12);
+        assert!((probs[3].2 - 0.09 / 0.98).abs() < 1e-12);
+        // Lane 1 of 2, accelerating: left and accelerate are clipped; keep 0.72, right 0.04,
+        // decel 0.09; total 0.85.
+        let probs = action_probabilities(&c, Maneuver { lane: 1, beta: 1 }, 2);
+        assert_eq!(probs.len(), 3);
+        assert!((probs[0].2 - 0.72 / 0.85).abs() < 1e-12);
+        let sum: f64 = probs.iter().map(|p| p.2).sum();
+        assert!((sum - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn pruning_by_hand() {
+        let c = PlannerConfig::default();
+        // Middle lane of 3, cruising. From beta = 0 the keep probability is 0.72/0.98; from
+        // beta = +-1 one longitudinal option is clipped, so keep is 0.72/0.89. Leaves:
+        // KKK = (0.72/0.98)^3 = 0.396590, DKK = AKK = (0.09/0.98)(0.72/0.89)^2 = 0.060104,
+        // KDK = KAK = (0.72/0.98)(0.09/0.98)(0.72/0.89) = 0.054585,
+        // KKD = (0.72/0.98)^2 (0.09/0.98) = 0.049573 < p_min. K = 4 keeps KKK, DKK, AKK, KDK
+        // (ties in enumeration order).
+        let b = predict_branches(&c, &kin(), 3, Maneuver { lane: 2, beta: 0 }, 0.0, 20.0, LaneSet::single(2));
+        let k = Action::KEEP;
+        let d = Action { lateral: 0, longitudinal: -1 };
+        let a = Action { lateral: 0, longitudinal: 1 };
+        let got: Vec<Vec<Action>> = b.iter().map(|x| x.actions.clone()).collect();
+        assert_eq!(got, vec![vec![k, k, k], vec![d, k, k], vec![a, k, k], vec![k, d, k]]);
+        let total = 0.396_590 + 2.0 * 0.060_104 + 0.054_585;
+        assert!((b[0].probability - 0.396_590 / total).abs() < 1e-5);
+        assert!((b[3].probability - 0.054_585 / total).abs() < 1e-5);
+        // The first deceleration branch: 3 m/s^2 from 20 m/s -> x = 8 - 0.24, 16.48 - 0.72...
+        assert!((b[1].x[0] - 7.76).abs() < 1e-12);
+        assert!((b[1].v[2] - 16.4).abs() < 1e-12);
+        // Lane 1 of 2, accelerating: keep = 0.72/0.85 = 0.84706 per step, so keep^3 = 0.60776,
+        // and a deceleration at the last step = 0.84706^2 * 0.09/0.85 = 0.07597 >= p_min.
+        let b = predict_branches(&c, &kin(), 2, Maneuver { lane: 1, beta: 1 }, 0.0, 20.0, LaneSet::single(1));
+        let raw_keep = (0.72f64 / 0.85).powi(3);
+        let raw_dev = (0.72f64 / 0.85).powi(2) * 0.09 / 0.85;
+        assert!(b.len() >= 2);
+        assert!((b[0].probability / b[1].probability - raw_keep / raw_dev).abs() < 1e-9);
+        assert!(b.len() <= c.prediction.max_branches);
+        let total: f64 = b.iter().map(|x| x.probability).sum();
+        assert!((total - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn at_most_k_branches() {
+        let mut c = PlannerConfig::default();
+        c.prediction.p_min = 0.0;
+        c.prediction.max_branches = 4;
+        let b = predict_branches(&c, &kin(), 3, Maneuver { lane: 2, beta: 0 }, 0.0, 20.0, LaneSet::single(2));
+        assert_eq!(b.len(), 4);
+        assert!(b.windows(2).all(|w| w[0].probability >= w[1].probability));
+    }
+
+    #[test]
+    fn covariance_grows_by_hand() {
+        let c = PlannerConfig::default();
+        let s = longitudinal_variances(&c);
+        // h=1: q_x = 0.25. h=2: 0.25 + dt^2 q_v + 0.25 = 0.5 + 0.16*0.25 = 0.54.
+        // h=3: Sxx2 + 2 dt Sxv2 + dt^2 Svv2 + q_x with Sxv2 = dt q_v = 0.1, Svv2 = 0.5:
+        // 0.54 + 0.08 + 0.08 + 0.25 = 0.95.
+        assert!((s[0] - 0.25).abs() < 1e-12);
+        assert!((s[1] - 0.54).abs() < 1e-12);
+        assert!((s[2] - 0.95).abs() < 1e-12);
+    }
+
+    #[test]
+    fn braking_branches_never_reverse() {
+        let mut c = PlannerConfig::default();
+        c.prediction.p_min = 0.0;
+        c.prediction.max_branches = 100;
+        let b = predict_branches(&c, &kin(), 2, Maneuver { lane: 1, beta: -1 }, 0.0, 1.0, LaneSet::single(1));
+        assert!(b.iter().all(|br| br.v.iter().all(|&v| v >= 0.0)));
+    }
+}

@@ -1,0 +1,125 @@
+//! Input checks: every number finite, speeds non-negative, lanes on the road, ids unique,
+//! capacity respected. Runs before anything else so the core never sees bad data.
+
+use crate::config::PlannerConfig;
+use crate::error::InputError;
+use crate::lanes::nearest_lane;
+use crate::types::Situation;
+
+fn finite(field: &'static str, value: f64) -> Result<(), InputError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(InputError::NonFinite { field })
+    }
+}
+
+fn speed(field: &'static str, value: f64) -> Result<(), InputError> {
+    finite(field, value)?;
+    if value < 0.0 {
+        return Err(InputError::NegativeSpeed { field, value });
+    }
+    Ok(())
+}
+
+/// Check a situation against the configuration.
+pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError> {
+    let road = &s.road;
+    if road.lanes == 0 || road.lanes > config.perception.max_lanes {
+        return Err(InputError::LaneCount {
+            lanes: road.lanes,
+            max: config.perception.max_lanes,
+        });
+    }
+    finite("road.lane_width_m", road.lane_width_m)?;
+    if road.lane_width_m <= 0.0 {
+        return Err(InputError::NotPositive {
+            field: "road.lane_width_m",
+            value: road.lane_width_m,
+        });
+    }
+    speed("road.speed_limit_mps", road.speed_limit_mps)?;
+
+    let ego = &s.ego;
+    finite("ego.x_m", ego.x_m)?;
+    finite("ego.y_m", ego.y_m)?;
+    speed("ego.v_mps", ego.v_mps)?;
+    speed("ego.desired_speed_mps", ego.desired_speed_mps)?;
+    let lane = ego.maneuver.lane;
+    if lane == 0 || lane > road.lanes {
+        return Err(InputError::LaneOutOfRange {
+            what: "ego target",
+            lane: i64::from(lane),
+            lanes: road.lanes,
+        });
+    }
+    if !(-1..=1).contains(&ego.maneuver.beta) {
+        return Err(InputError::BetaOutOfRange {
+            what: "ego",
+            beta: ego.maneuver.beta,
+        });
+    }
+    nearest_lane(road, ego.y_m).map_err(|lane| InputError::LaneOutOfRange {
+        what: "ego position",
+        lane,
+        lanes: road.lanes,
+    })?;
+
+    if s.svs.len() > config.perception.max_svs {
+        return Err(InputError::TooManyVehicles {
+            count: s.svs.len(),
+            capacity: config.perception.max_svs,
+        });
+    }
+    let mut ids: Vec<u32> = Vec::with_capacity(s.svs.len());
+    for sv in &s.svs {
+        finite("sv.x_m", sv.x_m)?;
+        finite("sv.y_m", sv.y_m)?;
+        speed("sv.v_mps", sv.v_mps)?;
+        finite("sv.a_mps2", sv.a_mps2)?;
+        nearest_lane(road, sv.y_m).map_err(|lane| InputError::LaneOutOfRange {
+            what: "SV position",
+            lane,
+            lanes: road.lanes,
+        })?;
+        ids.push(sv.id);
+    }
+    ids.sort_unstable();
+    if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+        return Err(InputError::DuplicateSvId { id: w[0] });
+    }
+
+    let memory = &s.memory;
+    if memory.corrective.len() > config.perception.max_svs {
+        return Err(InputError::InvalidMemory {
+            why: "more corrective entries than SV capacity",
+        });
+    }
+    for e in &memory.corrective {
+        if !(e.release_m.is_finite() && e.trigger_m.is_finite()) {
+            return Err(InputError::InvalidMemory {
+                why: "non-finite threshold",
+            });
+        }
+        if e.release_m < e.trigger_m {
+            return Err(InputError::InvalidMemory {
+                why: "release below trigger",
+            });
+        }
+    }
+    if memory.previous_plan.len() > config.timing.horizon {
+        return Err(InputError::InvalidMemory {
+            why: "previous plan longer than the horizon",
+        });
+    }
+    if memory
+        .previous_plan
+        .iter()
+        .any(|a| !(-1..=1).contains(&a.lateral) || !(-1..=1).contains(&a.longitudinal))
+    {
+        return Err(InputError::InvalidMemory {
+            why: "previous plan action outside -1..=1",
+        });
+    }
+    Ok(())
+}
