@@ -342,17 +342,24 @@ impl PlannerConfig {
             return bad("prediction.noise_diag", "must be finite and non-negative");
         }
         let h = &self.hysteresis;
-        if !(h.gamma1 < h.gamma2) {
+        if h.gamma1.partial_cmp(&h.gamma2) != Some(std::cmp::Ordering::Less) {
             return bad("hysteresis", "gamma1 must be below gamma2");
         }
-        if !(h.eps_min_m <= h.eps_max_m) {
+        if !matches!(
+            h.eps_min_m.partial_cmp(&h.eps_max_m),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        ) {
             return bad("hysteresis", "eps_min_m must not exceed eps_max_m");
         }
         let c = &self.cost;
         if !(c.w_global > c.w_slack && c.w_slack >= 0.0) {
             return bad("cost.w_global", "must exceed cost.w_slack (w_q >> w_s)");
         }
-        if c.w_beta.iter().chain([&c.w_lane_change, &c.w_speed]).any(|w| !(w.is_finite() && *w >= 0.0)) {
+        if c.w_beta
+            .iter()
+            .chain([&c.w_lane_change, &c.w_speed])
+            .any(|w| !(w.is_finite() && *w >= 0.0))
+        {
             return bad("cost", "weights must be finite and non-negative");
         }
         if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
@@ -361,7 +368,7 @@ impl PlannerConfig {
         if self.perception.max_lanes == 0 || self.perception.max_lanes > 16 {
             return bad("perception.max_lanes", "must be in 1..=16");
         }
-        if !(self.solver.time_limit_s > 0.0) {
+        if !(self.solver.time_limit_s.is_finite() && self.solver.time_limit_s > 0.0) {
             return bad("solver.time_limit_s", "must be positive");
         }
         Ok(())

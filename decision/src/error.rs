@@ -7,12 +7,17 @@ use thiserror::Error;
 pub enum InputError {
     #[error("field `{field}` is not a finite number")]
     NonFinite { field: &'static str },
+    #[error("field `{field}` = {value} is outside the plausible range [{min}, {max}]")]
+    OutOfRange {
+        field: &'static str,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
     #[error("field `{field}` is a negative speed ({value})")]
     NegativeSpeed { field: &'static str, value: f64 },
     #[error("road must have 1..={max} lanes, got {lanes}")]
     LaneCount { lanes: u8, max: u8 },
-    #[error("field `{field}` must be positive, got {value}")]
-    NotPositive { field: &'static str, value: f64 },
     #[error("{what} lane {lane} is outside 1..={lanes}")]
     LaneOutOfRange { what: &'static str, lane: i64, lanes: u8 },
     #[error("{what} longitudinal state {beta} is outside -1..=1")]

@@ -28,7 +28,14 @@ pub struct Evaluation {
 
 /// Largest shortfall `rhs - gap` over the SV's branches that share a lane with the ego at
 /// step `h`; `None` when none does.
-fn shortfall(problem: &Problem, sv: usize, h: usize, ego_x: f64, ego_occ: crate::lanes::LaneSet, rhs: f64) -> Option<f64> {
+fn shortfall(
+    problem: &Problem,
+    sv: usize,
+    h: usize,
+    ego_x: f64,
+    ego_occ: crate::lanes::LaneSet,
+    rhs: f64,
+) -> Option<f64> {
     let c = &problem.svs[sv];
     c.branches
         .iter()

@@ -49,7 +49,9 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             };
             if ttc.is_finite() {
                 let key = (ttc, rank, gap, threat, sv.id);
-                let better = best.as_ref().is_none_or(|b| (key.0, key.1, key.2, key.4) < (b.0, b.1, b.2, b.4));
+                let better = best
+                    .as_ref()
+                    .is_none_or(|b| (key.0, key.1, key.2, key.4) < (b.0, b.1, b.2, b.4));
                 if better {
                     best = Some(key);
                 }

@@ -6,7 +6,6 @@
 //! new model per decision with `Highs_passMip`, which keeps the options.
 
 use std::ffi::{c_char, c_int, c_void, CString};
-use std::ptr::null;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
@@ -40,7 +39,7 @@ impl MipModel {
 
     /// Add `lower <= sum(coef * col) <= upper`. Repeated columns are merged (HiGHS rejects
     /// a column that appears twice in one row) and zero coefficients dropped.
-    pub fn add_row(&mut self, lower: f64, upper: f64, terms: &mut Vec<(usize, f64)>) {
+    pub fn add_row(&mut self, lower: f64, upper: f64, terms: &mut [(usize, f64)]) {
         terms.sort_by_key(|t| t.0);
         self.row_start.push(self.row_index.len() as c_int);
         let mut i = 0;
@@ -143,9 +142,10 @@ unsafe extern "C" fn interrupt_callback(
     // SAFETY: user_data is the boxed CallbackData registered in `HighsSolver::new`, which
     // outlives the HiGHS instance; data_in is valid for the duration of the callback.
     let data = unsafe { &*(user_data as *const CallbackData) };
-    if data.state.stop.load(Ordering::Relaxed) == data.solve_id.load(Ordering::Relaxed) {
-        unsafe { (*data_in).user_interrupt = 1 };
-    }
+    let stop = data.state.stop.load(Ordering::Relaxed) == data.solve_id.load(Ordering::Relaxed);
+    // Always write the flag: HiGHS keeps this struct across runs, so a 1 left from an
+    // interrupted solve would stop the next one too.
+    unsafe { (*data_in).user_interrupt = c_int::from(stop) };
 }
 
 /// One HiGHS instance, to be kept by one thread for its whole life.
@@ -217,19 +217,25 @@ impl HighsSolver {
     fn set_bool(&mut self, name: &'static str, value: bool) -> Result<(), SolverError> {
         let key = CString::new(name).expect("option names have no NUL");
         // SAFETY: live instance, NUL-terminated key.
-        check(name, unsafe { ffi::Highs_setBoolOptionValue(self.ptr, key.as_ptr(), c_int::from(value)) })
+        check(name, unsafe {
+            ffi::Highs_setBoolOptionValue(self.ptr, key.as_ptr(), c_int::from(value))
+        })
     }
 
     fn set_int(&mut self, name: &'static str, value: c_int) -> Result<(), SolverError> {
         let key = CString::new(name).expect("option names have no NUL");
         // SAFETY: as above.
-        check(name, unsafe { ffi::Highs_setIntOptionValue(self.ptr, key.as_ptr(), value) })
+        check(name, unsafe {
+            ffi::Highs_setIntOptionValue(self.ptr, key.as_ptr(), value)
+        })
     }
 
     fn set_double(&mut self, name: &'static str, value: f64) -> Result<(), SolverError> {
         let key = CString::new(name).expect("option names have no NUL");
         // SAFETY: as above.
-        check(name, unsafe { ffi::Highs_setDoubleOptionValue(self.ptr, key.as_ptr(), value) })
+        check(name, unsafe {
+            ffi::Highs_setDoubleOptionValue(self.ptr, key.as_ptr(), value)
+        })
     }
 
     fn set_string(&mut self, name: &'static str, value: &str) -> Result<(), SolverError> {
@@ -246,8 +252,15 @@ impl HighsSolver {
         self.set_double("time_limit", seconds)
     }
 
-    /// Solve `model` (minimisation), optionally starting from a feasible point.
-    pub fn solve(&mut self, model: &MipModel, start: Option<&[f64]>) -> Result<MipResult, SolverError> {
+    /// Solve `model` (minimisation). With `cutoff`, only solutions with an objective below it
+    /// are sought (nodes whose bound reaches it are pruned); finding none is reported as
+    /// `Infeasible`, which then means "nothing beats the cutoff".
+    ///
+    /// A cutoff is how a known feasible plan warm-starts the search. `Highs_setSolution` would
+    /// be the obvious tool, but with HiGHS 1.16 a MIP solved from a user solution can report
+    /// the improved objective while `Highs_getSolution` still returns the user's point.
+    pub fn solve(&mut self, model: &MipModel, cutoff: Option<f64>) -> Result<MipResult, SolverError> {
+        self.set_double("objective_bound", cutoff.unwrap_or(f64::INFINITY))?;
         let num_col = model.num_cols() as c_int;
         let num_row = model.num_rows() as c_int;
         let integrality: Vec<c_int> = model
@@ -266,7 +279,7 @@ impl HighsSolver {
         self.callback.solve_id.store(solve_id, Ordering::SeqCst);
         let state = self.callback.state.clone();
         state.running.store(solve_id, Ordering::SeqCst);
-        let result = self.run(model, num_col, num_row, &integrality, start);
+        let result = self.run(model, num_col, num_row, &integrality);
         state.running.store(0, Ordering::SeqCst);
         result
     }
@@ -277,7 +290,6 @@ impl HighsSolver {
         num_col: c_int,
         num_row: c_int,
         integrality: &[c_int],
-        start: Option<&[f64]>,
     ) -> Result<MipResult, SolverError> {
         // SAFETY: every array has the length HiGHS expects for the given counts and format
         // (checked by MipModel's construction); the instance is live.
@@ -303,13 +315,6 @@ impl HighsSolver {
                     integrality.as_ptr(),
                 ),
             )?;
-            if let Some(cols) = start {
-                debug_assert_eq!(cols.len(), model.num_cols());
-                check(
-                    "Highs_setSolution",
-                    ffi::Highs_setSolution(self.ptr, cols.as_ptr(), null(), null(), null()),
-                )?;
-            }
             check("Highs_run", ffi::Highs_run(self.ptr))?;
             let status = match ffi::Highs_getModelStatus(self.ptr) {
                 s if s == ffi::kHighsModelStatusOptimal => MipStatus::Optimal,
@@ -374,15 +379,15 @@ mod tests {
         let mut m = MipModel::default();
         let x = m.add_col(-1.0, 0.0, 10.0, true);
         let y = m.add_col(-1.0, 0.0, 10.0, true);
-        m.add_row(f64::NEG_INFINITY, 4.0, &mut vec![(x, 1.0), (y, 2.0)]);
-        m.add_row(f64::NEG_INFINITY, 6.0, &mut vec![(x, 3.0), (y, 1.0)]);
+        m.add_row(f64::NEG_INFINITY, 4.0, &mut [(x, 1.0), (y, 2.0)]);
+        m.add_row(f64::NEG_INFINITY, 6.0, &mut [(x, 3.0), (y, 1.0)]);
         let r = s.solve(&m, None).unwrap();
         assert_eq!(r.status, MipStatus::Optimal);
         assert!((r.objective + 2.0).abs() < 1e-9);
         // Reuse the instance for an infeasible model.
         let mut m2 = MipModel::default();
         let z = m2.add_col(0.0, 0.0, 1.0, true);
-        m2.add_row(2.0, f64::INFINITY, &mut vec![(z, 1.0)]);
+        m2.add_row(2.0, f64::INFINITY, &mut [(z, 1.0)]);
         assert_eq!(s.solve(&m2, None).unwrap().status, MipStatus::Infeasible);
     }
 
@@ -391,7 +396,7 @@ mod tests {
         let mut m = MipModel::default();
         let x = m.add_col(0.0, 0.0, 1.0, false);
         let y = m.add_col(0.0, 0.0, 1.0, false);
-        m.add_row(0.0, 1.0, &mut vec![(y, 1.0), (x, 2.0), (y, -1.0), (x, 0.5)]);
+        m.add_row(0.0, 1.0, &mut [(y, 1.0), (x, 2.0), (y, -1.0), (x, 0.5)]);
         assert_eq!(m.row_index, vec![x as c_int]);
         assert_eq!(m.row_value, vec![2.5]);
     }
@@ -402,7 +407,7 @@ mod tests {
         let handle = s.interrupt_handle();
         let mut m = MipModel::default();
         let x = m.add_col(-1.0, 0.0, 3.0, true);
-        m.add_row(f64::NEG_INFINITY, 2.5, &mut vec![(x, 1.0)]);
+        m.add_row(f64::NEG_INFINITY, 2.5, &mut [(x, 1.0)]);
         let first = s.next_solve_id();
         assert_eq!(s.solve(&m, None).unwrap().status, MipStatus::Optimal);
         handle.interrupt(first);

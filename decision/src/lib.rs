@@ -10,6 +10,8 @@
 //! tests hold the MILP to.
 
 pub mod config;
+#[cfg(feature = "corpus")]
+pub mod corpus;
 pub mod enumeration;
 pub mod error;
 pub mod evaluate;
@@ -31,6 +33,6 @@ pub use error::{ConfigError, DecisionError, InputError, SolverError};
 pub use highs_solver::InterruptHandle;
 pub use planner::{fallback_only, Planner};
 pub use types::{
-    Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, Situation,
-    SolveStats, SvObservation, Threat,
+    Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, Situation, SolveStats,
+    SvObservation, Threat,
 };

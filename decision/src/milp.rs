@@ -90,6 +90,8 @@ fn reachable_positions(problem: &Problem) -> Vec<(f64, f64)> {
 /// Why a model could not be built: the layer is infeasible before any solve.
 struct Infeasible;
 
+// Steps index several parallel arrays (reach, branches, layout) at once.
+#[allow(clippy::needless_range_loop)]
 fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Layout), Infeasible> {
     let h_len = problem.horizon;
     let n = problem.lanes as usize;
@@ -257,7 +259,8 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Layout), Infeasible
                         terms.push((col, 1.0));
                     }
                     if mode == Mode::Relaxed {
-                        let col = *lay.glob[idx].get_or_insert_with(|| m.add_col(w.w_global, 0.0, c.relax_bound, false));
+                        let col =
+                            *lay.glob[idx].get_or_insert_with(|| m.add_col(w.w_global, 0.0, c.relax_bound, false));
                         terms.push((col, 1.0));
                     }
                     let mut lower = rhs + problem.length - sign * (x_b - c_s);
@@ -293,7 +296,9 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Layout), Infeasible
     Ok((m, lay))
 }
 
-/// Column vector of a sequence already evaluated feasible (the warm start).
+/// Column vector of a sequence already evaluated feasible (to check the model against the
+/// oracle).
+#[cfg(test)]
 fn columns_of(problem: &Problem, lay: &Layout, e: &Evaluation, num_cols: usize) -> Vec<f64> {
     let mut x = vec![0.0; num_cols];
     let r = &e.rollout;
@@ -378,7 +383,8 @@ impl MilpBackend {
         self.solver.set_time_limit(seconds)
     }
 
-    /// Solve one layer. `warm` are candidate sequences for the incumbent.
+    /// Solve one layer. `warm` are candidate sequences; the best feasible one is the
+    /// incumbent whose cost cuts off the search.
     pub fn solve(&mut self, problem: &Problem, mode: Mode, warm: &[Vec<Action>]) -> Result<LayerOutcome, SolverError> {
         let Ok((model, lay)) = build(problem, mode) else {
             return Ok(LayerOutcome {
@@ -392,27 +398,103 @@ impl MilpBackend {
                 stopped: false,
             });
         };
-        let start = warm
+        // The best warm candidate bounds the search; if nothing beats it, it is the answer.
+        let incumbent = warm
             .iter()
             .filter_map(|actions| evaluate(problem, actions, mode))
-            .min_by(|a, b| a.cost.total_cmp(&b.cost))
-            .map(|e| columns_of(problem, &lay, &e, model.num_cols()));
-        let result = self.solver.solve(&model, start.as_deref())?;
+            .min_by(|a, b| a.cost.total_cmp(&b.cost));
+        let cutoff = incumbent.as_ref().map(|e| e.cost + 1e-6 + 1e-9 * e.cost.abs());
+        let result = self.solver.solve(&model, cutoff)?;
         let stopped = result.status == MipStatus::Stopped;
         let usable = matches!(result.status, MipStatus::Optimal | MipStatus::Stopped);
-        let evaluation = match (&result.columns, usable) {
+        let found = match (&result.columns, usable) {
             (Some(cols), true) => evaluate(problem, &decode(problem, &lay, cols), mode),
             _ => None,
         };
+        let solver_objective = found.as_ref().map(|_| result.objective);
+        let evaluation = match (found, incumbent) {
+            (Some(f), Some(i)) => Some(if i.cost < f.cost { i } else { f }),
+            (found, incumbent) => found.or(incumbent),
+        };
         Ok(LayerOutcome {
-            solver_objective: evaluation.as_ref().map(|_| result.objective),
+            solver_objective,
             evaluation,
             rows: model.num_rows(),
             columns: model.num_cols(),
             binaries: model.num_integers(),
             nodes: result.nodes,
-            warm_start: start.is_some(),
+            warm_start: cutoff.is_some(),
             stopped,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::corpus::{paper_classes, SituationGenerator};
+    use crate::model::admissible_sequences;
+    use crate::problem::prepare;
+    use crate::PlannerConfig;
+
+    /// Every sequence the oracle finds feasible maps to a column vector that satisfies every
+    /// row and bound of the MILP, with the same objective: the model cuts off nothing that
+    /// is allowed and charges what the exact evaluation charges.
+    #[test]
+    fn oracle_feasible_sequences_are_milp_feasible_with_equal_cost() {
+        let config = PlannerConfig::default();
+        let mut checked = 0;
+        for class in paper_classes() {
+            let mut generator = SituationGenerator::new(99 + u64::from(class.id));
+            for _ in 0..6 {
+                let s = generator.situation(&config, &class);
+                let problem = prepare(&config, &s).problem;
+                for mode in [Mode::Nominal, Mode::Relaxed] {
+                    let Ok((model, lay)) = build(&problem, mode) else {
+                        let any = admissible_sequences(problem.start, problem.lanes, problem.horizon, false)
+                            .iter()
+                            .any(|a| evaluate(&problem, a, mode).is_some());
+                        assert!(!any, "build declared infeasible, oracle disagrees: {s:?}");
+                        continue;
+                    };
+                    for actions in admissible_sequences(problem.start, problem.lanes, problem.horizon, false) {
+                        let Some(e) = evaluate(&problem, &actions, mode) else {
+                            continue;
+                        };
+                        let x = columns_of(&problem, &lay, &e, model.num_cols());
+                        for (c, &v) in x.iter().enumerate() {
+                            assert!(
+                                v >= model.col_lower[c] - 1e-7 && v <= model.col_upper[c] + 1e-7,
+                                "column {c} = {v} outside [{}, {}] for {actions:?}; {s:?}",
+                                model.col_lower[c],
+                                model.col_upper[c]
+                            );
+                        }
+                        for r in 0..model.num_rows() {
+                            let (a, b) = (
+                                model.row_start[r] as usize,
+                                model
+                                    .row_start
+                                    .get(r + 1)
+                                    .map_or(model.row_index.len(), |&e| e as usize),
+                            );
+                            let act: f64 = (a..b)
+                                .map(|k| model.row_value[k] * x[model.row_index[k] as usize])
+                                .sum();
+                            assert!(
+                                act >= model.row_lower[r] - 1e-6 && act <= model.row_upper[r] + 1e-6,
+                                "row {r}: {act} outside [{}, {}] for {actions:?} in {mode:?}; {s:?}",
+                                model.row_lower[r],
+                                model.row_upper[r]
+                            );
+                        }
+                        let objective: f64 = x.iter().zip(&model.col_cost).map(|(v, c)| v * c).sum();
+                        assert!((objective - e.cost).abs() < 1e-6, "objective {objective} vs {}", e.cost);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked}");
     }
 }

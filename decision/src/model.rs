@@ -6,23 +6,65 @@ use crate::lanes::LaneSet;
 use crate::types::{Action, Beta, Maneuver};
 
 const ONE_STEP: [Action; 5] = [
-    Action { lateral: 0, longitudinal: 0 },
-    Action { lateral: -1, longitudinal: 0 },
-    Action { lateral: 1, longitudinal: 0 },
-    Action { lateral: 0, longitudinal: -1 },
-    Action { lateral: 0, longitudinal: 1 },
+    Action {
+        lateral: 0,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: -1,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: 1,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: 0,
+        longitudinal: -1,
+    },
+    Action {
+        lateral: 0,
+        longitudinal: 1,
+    },
 ];
 
 const COMBINED: [Action; 9] = [
-    Action { lateral: 0, longitudinal: 0 },
-    Action { lateral: -1, longitudinal: 0 },
-    Action { lateral: 1, longitudinal: 0 },
-    Action { lateral: 0, longitudinal: -1 },
-    Action { lateral: 0, longitudinal: 1 },
-    Action { lateral: -1, longitudinal: -1 },
-    Action { lateral: -1, longitudinal: 1 },
-    Action { lateral: 1, longitudinal: -1 },
-    Action { lateral: 1, longitudinal: 1 },
+    Action {
+        lateral: 0,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: -1,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: 1,
+        longitudinal: 0,
+    },
+    Action {
+        lateral: 0,
+        longitudinal: -1,
+    },
+    Action {
+        lateral: 0,
+        longitudinal: 1,
+    },
+    Action {
+        lateral: -1,
+        longitudinal: -1,
+    },
+    Action {
+        lateral: -1,
+        longitudinal: 1,
+    },
+    Action {
+        lateral: 1,
+        longitudinal: -1,
+    },
+    Action {
+        lateral: 1,
+        longitudinal: 1,
+    },
 ];
 
 /// The admissible actions, "keep" first.
@@ -42,10 +84,7 @@ pub fn transition(m: Maneuver, d: Action, lanes: u8) -> Option<Maneuver> {
     if lane < 1 || lane > i16::from(lanes) || !(-1..=1).contains(&beta) {
         return None;
     }
-    Some(Maneuver {
-        lane: lane as u8,
-        beta,
-    })
+    Some(Maneuver { lane: lane as u8, beta })
 }
 
 /// Longitudinal kinematics of the maps `f^sigma`.
@@ -160,11 +199,48 @@ mod tests {
 
     #[test]
     fn clip_discards_rather_than_saturates() {
-        assert_eq!(transition(m(1, 0), Action { lateral: -1, longitudinal: 0 }, 2), None);
-        assert_eq!(transition(m(2, 0), Action { lateral: 1, longitudinal: 0 }, 2), None);
-        assert_eq!(transition(m(1, 1), Action { lateral: 0, longitudinal: 1 }, 2), None);
         assert_eq!(
-            transition(m(2, 1), Action { lateral: -1, longitudinal: 0 }, 2),
+            transition(
+                m(1, 0),
+                Action {
+                    lateral: -1,
+                    longitudinal: 0
+                },
+                2
+            ),
+            None
+        );
+        assert_eq!(
+            transition(
+                m(2, 0),
+                Action {
+                    lateral: 1,
+                    longitudinal: 0
+                },
+                2
+            ),
+            None
+        );
+        assert_eq!(
+            transition(
+                m(1, 1),
+                Action {
+                    lateral: 0,
+                    longitudinal: 1
+                },
+                2
+            ),
+            None
+        );
+        assert_eq!(
+            transition(
+                m(2, 1),
+                Action {
+                    lateral: -1,
+                    longitudinal: 0
+                },
+                2
+            ),
             Some(m(1, 1))
         );
     }
@@ -188,10 +264,10 @@ mod tests {
                 for beta in -1..=1 {
                     let start = m(lane, beta);
                     let mut brute = 0;
-                    for a in 0..5 {
-                        for b in 0..5 {
-                            for c in 0..5 {
-                                let seq = [ONE_STEP[a], ONE_STEP[b], ONE_STEP[c]];
+                    for a in ONE_STEP {
+                        for b in ONE_STEP {
+                            for c in ONE_STEP {
+                                let seq = [a, b, c];
                                 let mut cur = Some(start);
                                 for d in seq {
                                     cur = cur.and_then(|s| transition(s, d, lanes));
@@ -230,7 +306,16 @@ mod tests {
             lateral: -1,
             longitudinal: 0,
         };
-        let r = rollout(&kin, 3, m(2, 0), 0.0, 10.0, LaneSet::single(2), &[Action::KEEP, left, Action::KEEP]).unwrap();
+        let r = rollout(
+            &kin,
+            3,
+            m(2, 0),
+            0.0,
+            10.0,
+            LaneSet::single(2),
+            &[Action::KEEP, left, Action::KEEP],
+        )
+        .unwrap();
         assert_eq!(r.occupancy[0], LaneSet::single(2));
         assert_eq!(r.occupancy[1], LaneSet::single(1).with(2));
         assert_eq!(r.occupancy[2], LaneSet::single(1).with(2));

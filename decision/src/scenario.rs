@@ -37,11 +37,25 @@ pub fn beta_from_accel(a: f64, dead_band: f64) -> Beta {
 /// restricted to the action set and renormalised.
 pub fn action_probabilities(config: &PlannerConfig, m: Maneuver, lanes: u8) -> Vec<(Action, Maneuver, f64)> {
     let p = &config.prediction;
-    let lateral = |d: i8| if d == 0 { p.p_keep_lat } else { (1.0 - p.p_keep_lat) / 2.0 };
-    let longitudinal = |d: i8| if d == 0 { p.p_keep_long } else { (1.0 - p.p_keep_long) / 2.0 };
+    let lateral = |d: i8| {
+        if d == 0 {
+            p.p_keep_lat
+        } else {
+            (1.0 - p.p_keep_lat) / 2.0
+        }
+    };
+    let longitudinal = |d: i8| {
+        if d == 0 {
+            p.p_keep_long
+        } else {
+            (1.0 - p.p_keep_long) / 2.0
+        }
+    };
     let mut out: Vec<(Action, Maneuver, f64)> = action_set(config.ego.combined_actions)
         .iter()
-        .filter_map(|&d| transition(m, d, lanes).map(|next| (d, next, lateral(d.lateral) * longitudinal(d.longitudinal))))
+        .filter_map(|&d| {
+            transition(m, d, lanes).map(|next| (d, next, lateral(d.lateral) * longitudinal(d.longitudinal)))
+        })
         .collect();
     let total: f64 = out.iter().map(|(_, _, w)| w).sum();
     for entry in &mut out {
@@ -113,7 +127,18 @@ pub fn predict_branches(
             current.occupancy.pop();
         }
     }
-    grow(config, kin, lanes, start, x0, v0, occupancy0, horizon, &mut current, &mut leaves);
+    grow(
+        config,
+        kin,
+        lanes,
+        start,
+        x0,
+        v0,
+        occupancy0,
+        horizon,
+        &mut current,
+        &mut leaves,
+    );
     // Stable sort keeps action-set order among equal probabilities.
     leaves.sort_by(|a, b| b.probability.total_cmp(&a.probability));
     let p_min = config.prediction.p_min;
@@ -194,10 +219,24 @@ mod tests {
         // KDK = KAK = (0.72/0.98)(0.09/0.98)(0.72/0.89) = 0.054585,
         // KKD = (0.72/0.98)^2 (0.09/0.98) = 0.049573 < p_min. K = 4 keeps KKK, DKK, AKK, KDK
         // (ties in enumeration order).
-        let b = predict_branches(&c, &kin(), 3, Maneuver { lane: 2, beta: 0 }, 0.0, 20.0, LaneSet::single(2));
+        let b = predict_branches(
+            &c,
+            &kin(),
+            3,
+            Maneuver { lane: 2, beta: 0 },
+            0.0,
+            20.0,
+            LaneSet::single(2),
+        );
         let k = Action::KEEP;
-        let d = Action { lateral: 0, longitudinal: -1 };
-        let a = Action { lateral: 0, longitudinal: 1 };
+        let d = Action {
+            lateral: 0,
+            longitudinal: -1,
+        };
+        let a = Action {
+            lateral: 0,
+            longitudinal: 1,
+        };
         let got: Vec<Vec<Action>> = b.iter().map(|x| x.actions.clone()).collect();
         assert_eq!(got, vec![vec![k, k, k], vec![d, k, k], vec![a, k, k], vec![k, d, k]]);
         let total = 0.396_590 + 2.0 * 0.060_104 + 0.054_585;
@@ -208,7 +247,15 @@ mod tests {
         assert!((b[1].v[2] - 16.4).abs() < 1e-12);
         // Lane 1 of 2, accelerating: keep = 0.72/0.85 = 0.84706 per step, so keep^3 = 0.60776,
         // and a deceleration at the last step = 0.84706^2 * 0.09/0.85 = 0.07597 >= p_min.
-        let b = predict_branches(&c, &kin(), 2, Maneuver { lane: 1, beta: 1 }, 0.0, 20.0, LaneSet::single(1));
+        let b = predict_branches(
+            &c,
+            &kin(),
+            2,
+            Maneuver { lane: 1, beta: 1 },
+            0.0,
+            20.0,
+            LaneSet::single(1),
+        );
         let raw_keep = (0.72f64 / 0.85).powi(3);
         let raw_dev = (0.72f64 / 0.85).powi(2) * 0.09 / 0.85;
         assert!(b.len() >= 2);
@@ -223,7 +270,15 @@ mod tests {
         let mut c = PlannerConfig::default();
         c.prediction.p_min = 0.0;
         c.prediction.max_branches = 4;
-        let b = predict_branches(&c, &kin(), 3, Maneuver { lane: 2, beta: 0 }, 0.0, 20.0, LaneSet::single(2));
+        let b = predict_branches(
+            &c,
+            &kin(),
+            3,
+            Maneuver { lane: 2, beta: 0 },
+            0.0,
+            20.0,
+            LaneSet::single(2),
+        );
         assert_eq!(b.len(), 4);
         assert!(b.windows(2).all(|w| w[0].probability >= w[1].probability));
     }
@@ -245,7 +300,15 @@ mod tests {
         let mut c = PlannerConfig::default();
         c.prediction.p_min = 0.0;
         c.prediction.max_branches = 100;
-        let b = predict_branches(&c, &kin(), 2, Maneuver { lane: 1, beta: -1 }, 0.0, 1.0, LaneSet::single(1));
+        let b = predict_branches(
+            &c,
+            &kin(),
+            2,
+            Maneuver { lane: 1, beta: -1 },
+            0.0,
+            1.0,
+            LaneSet::single(1),
+        );
         assert!(b.iter().all(|br| br.v.iter().all(|&v| v >= 0.0)));
     }
 }

@@ -6,20 +6,35 @@ use crate::error::InputError;
 use crate::lanes::nearest_lane;
 use crate::types::Situation;
 
-fn finite(field: &'static str, value: f64) -> Result<(), InputError> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(InputError::NonFinite { field })
+/// Plausibility bounds: beyond them the numbers are not a road scene, and huge magnitudes
+/// would only turn into overflow inside the solver.
+const MAX_POSITION_M: f64 = 1.0e7;
+const MAX_SPEED_MPS: f64 = 150.0;
+const MAX_ACCEL_MPS2: f64 = 100.0;
+const MAX_LANE_WIDTH_M: f64 = 20.0;
+
+fn within(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), InputError> {
+    if !value.is_finite() {
+        return Err(InputError::NonFinite { field });
     }
+    if value < min || value > max {
+        return Err(InputError::OutOfRange { field, value, min, max });
+    }
+    Ok(())
+}
+
+fn finite(field: &'static str, value: f64) -> Result<(), InputError> {
+    within(field, value, -MAX_POSITION_M, MAX_POSITION_M)
 }
 
 fn speed(field: &'static str, value: f64) -> Result<(), InputError> {
-    finite(field, value)?;
+    if !value.is_finite() {
+        return Err(InputError::NonFinite { field });
+    }
     if value < 0.0 {
         return Err(InputError::NegativeSpeed { field, value });
     }
-    Ok(())
+    within(field, value, 0.0, MAX_SPEED_MPS)
 }
 
 /// Check a situation against the configuration.
@@ -31,13 +46,7 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
             max: config.perception.max_lanes,
         });
     }
-    finite("road.lane_width_m", road.lane_width_m)?;
-    if road.lane_width_m <= 0.0 {
-        return Err(InputError::NotPositive {
-            field: "road.lane_width_m",
-            value: road.lane_width_m,
-        });
-    }
+    within("road.lane_width_m", road.lane_width_m, f64::MIN_POSITIVE, MAX_LANE_WIDTH_M)?;
     speed("road.speed_limit_mps", road.speed_limit_mps)?;
 
     let ego = &s.ego;
@@ -76,7 +85,7 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
         finite("sv.x_m", sv.x_m)?;
         finite("sv.y_m", sv.y_m)?;
         speed("sv.v_mps", sv.v_mps)?;
-        finite("sv.a_mps2", sv.a_mps2)?;
+        within("sv.a_mps2", sv.a_mps2, -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2)?;
         nearest_lane(road, sv.y_m).map_err(|lane| InputError::LaneOutOfRange {
             what: "SV position",
             lane,
@@ -96,9 +105,9 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
         });
     }
     for e in &memory.corrective {
-        if !(e.release_m.is_finite() && e.trigger_m.is_finite()) {
+        if !(e.release_m.abs() <= MAX_POSITION_M && e.trigger_m.abs() <= MAX_POSITION_M) {
             return Err(InputError::InvalidMemory {
-                why: "non-finite threshold",
+                why: "threshold not a finite distance",
             });
         }
         if e.release_m < e.trigger_m {

@@ -42,8 +42,7 @@ pub fn idm_acceleration(v: f64, v_desired: f64, gap: f64, dv_closing: f64, p: &I
     } else if gap <= 0.0 {
         return p.a_min;
     } else {
-        let dynamic =
-            v * p.time_headway + v * dv_closing / (2.0 * (p.a_max * p.b_comfort).sqrt());
+        let dynamic = v * p.time_headway + v * dv_closing / (2.0 * (p.a_max * p.b_comfort).sqrt());
         let s_star = p.min_gap + dynamic.max(0.0);
         (s_star / gap).powi(2)
     };

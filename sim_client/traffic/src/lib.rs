@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! Deterministic multi-lane traffic simulator for evaluating a driving decision planner.
 //!
 //! The crate is pure: no I/O, no threads, no global state. All randomness comes from

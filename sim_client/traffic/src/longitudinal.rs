@@ -31,14 +31,7 @@ fn max_feasible(room: f64, da: f64, dt: f64) -> f64 {
 /// The acceleration moves from `a_prev` towards `a_target` by at most `jerk * dt`, and is
 /// capped so that it can always be ramped back to zero (at the same jerk) before the speed
 /// bound is hit: the bound is reached with zero acceleration instead of a jerk spike.
-pub fn jerk_limited_acceleration(
-    v: f64,
-    v_max: f64,
-    a_prev: f64,
-    a_target: f64,
-    jerk: f64,
-    dt: f64,
-) -> f64 {
+pub fn jerk_limited_acceleration(v: f64, v_max: f64, a_prev: f64, a_target: f64, jerk: f64, dt: f64) -> f64 {
     let da = jerk * dt;
     let upper = max_feasible(v_max - v, da, dt);
     let lower = -max_feasible(v, da, dt);

@@ -69,8 +69,8 @@ impl MobilDecision {
 /// brake harder than `b_safe` behind its new leader: that keeps forced (random) lane changes,
 /// which skip the incentive test, from cutting in at a hopeless gap.
 pub fn mobil_evaluate(input: &MobilInput, p: &MobilParams) -> MobilDecision {
-    let incentive = (input.a_c_new - input.a_c)
-        + p.politeness * ((input.a_n_new - input.a_n) + (input.a_o_new - input.a_o));
+    let incentive =
+        (input.a_c_new - input.a_c) + p.politeness * ((input.a_n_new - input.a_n) + (input.a_o_new - input.a_o));
     let gaps_ok = [input.gap_new_leader, input.gap_new_follower]
         .into_iter()
         .flatten()

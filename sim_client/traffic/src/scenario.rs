@@ -20,8 +20,11 @@ pub struct VehicleInit {
 /// A traffic scene: road, ego and surrounding vehicles (SV `k` in `svs` gets id `k + 1`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scenario {
+    /// Road geometry and speed limit.
     pub road: Road,
+    /// Ego initial state (id 0).
     pub ego: VehicleInit,
+    /// Surrounding vehicles (ids 1..).
     pub svs: Vec<VehicleInit>,
 }
 
@@ -80,11 +83,7 @@ impl Scenario {
                 let lane = rng.random_range(1..=cfg.lanes);
                 let v = rng.random_range(lo..=hi);
                 // The ego wants the top of the range; SVs draw their own.
-                let desired_speed = if id == 0 {
-                    hi
-                } else {
-                    rng.random_range(lo..=hi)
-                };
+                let desired_speed = if id == 0 { hi } else { rng.random_range(lo..=hi) };
                 let candidate = VehicleInit {
                     x,
                     lane,
@@ -98,11 +97,7 @@ impl Scenario {
             placed.push(vehicle);
         }
         let ego = placed.remove(0);
-        Ok(Scenario {
-            road,
-            ego,
-            svs: placed,
-        })
+        Ok(Scenario { road, ego, svs: placed })
     }
 }
 
@@ -150,6 +145,7 @@ pub struct PaperTableEntry {
     pub id: u8,
     /// Number of Monte-Carlo trials N.
     pub trials: u32,
+    /// Scene parameters of the row.
     pub config: TrafficConfig,
 }
 
@@ -167,8 +163,7 @@ impl TrafficConfig {
     /// The 18 configurations of the paper's Table I, in id order.
     pub fn paper_table() -> Vec<PaperTableEntry> {
         const TRIALS: [u32; 18] = [
-            500, 375, 325, 325, 600, 375, 500, 350, 325, 425, 625, 525, 500, 325, 375, 425, 600,
-            575,
+            500, 375, 325, 325, 600, 375, 500, 350, 325, 425, 625, 525, 500, 325, 375, 425, 600, 575,
         ];
         let mut out = Vec::with_capacity(18);
         for lanes in [2u8, 3, 4] {

@@ -3,10 +3,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    idm_acceleration, jerk_limited_acceleration, mobil_evaluate, rectangles_overlap, Collision,
-    EgoObservation, LaneChange, LaneSet, MobilDecision, MobilInput, Perception, Road, Scenario,
-    SimError, SimParams, SvObservation, Vehicle, VehicleInit, VehicleKind, EGO_ID,
-    VEHICLE_LENGTH,
+    idm_acceleration, jerk_limited_acceleration, mobil_evaluate, rectangles_overlap, Collision, EgoObservation,
+    LaneChange, LaneSet, MobilDecision, MobilInput, Perception, Road, Scenario, SimError, SimParams, SvObservation,
+    Vehicle, VehicleInit, VehicleKind, EGO_ID, VEHICLE_LENGTH,
 };
 
 /// How the ego is driven.
@@ -35,9 +34,13 @@ pub struct WorldSnapshot {
     pub step_index: u64,
     /// Simulation time (s), `step_index * dt`.
     pub time: f64,
+    /// Road geometry and speed limit.
     pub road: Road,
+    /// Parameters in use.
     pub params: SimParams,
+    /// How the ego is driven.
     pub ego_mode: EgoMode,
+    /// Last ego command.
     pub ego_command: EgoCommand,
     /// Ego first, then SVs by increasing id.
     pub vehicles: Vec<Vehicle>,
@@ -91,12 +94,7 @@ fn check_init(road: &Road, id: u32, init: &VehicleInit) -> Result<(), SimError> 
 
 impl World {
     /// Builds a world from a scenario; `seed` drives all SV randomness.
-    pub fn new(
-        scenario: &Scenario,
-        params: &SimParams,
-        ego_mode: EgoMode,
-        seed: u64,
-    ) -> Result<Self, SimError> {
+    pub fn new(scenario: &Scenario, params: &SimParams, ego_mode: EgoMode, seed: u64) -> Result<Self, SimError> {
         let road = scenario.road;
         road.validate()?;
         params.validate()?;
@@ -245,8 +243,7 @@ impl World {
         if cmd.target_lane != ego.target_lane {
             let to_y = road.lane_centre(cmd.target_lane);
             let dy = (to_y - ego.y).abs();
-            let duration =
-                (p.lane_change_duration * dy / road.lane_width).max(p.min_lane_change_duration);
+            let duration = (p.lane_change_duration * dy / road.lane_width).max(p.min_lane_change_duration);
             ego.lane_change = Some(LaneChange {
                 origin_lane: road.lane_of(ego.y),
                 target_lane: cmd.target_lane,
@@ -403,14 +400,7 @@ impl World {
                     -1 => p.a_dec,
                     _ => 0.0,
                 };
-                jerk_limited_acceleration(
-                    v.v,
-                    self.road.speed_limit,
-                    v.a,
-                    target,
-                    p.jerk_max,
-                    p.dt,
-                )
+                jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
             }
             (VehicleKind::Ego, EgoMode::IdmMobil) => self.idm_in_lanes(i, sets),
             (VehicleKind::Surrounding, _) => {

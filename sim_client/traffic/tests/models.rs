@@ -89,10 +89,7 @@ fn idm_is_clamped_to_physical_braking() {
     let a = idm_acceleration(30.0, 30.0, 5.0, 10.0, &IdmParams::default());
     assert_eq!(a, -9.0);
     // Overlap: full braking.
-    assert_eq!(
-        idm_acceleration(10.0, 30.0, -1.0, 0.0, &IdmParams::default()),
-        -9.0
-    );
+    assert_eq!(idm_acceleration(10.0, 30.0, -1.0, 0.0, &IdmParams::default()), -9.0);
     // Far below the desired speed the output saturates at a_max: 1.5 * (1 - 0) = 1.5.
     let a = idm_acceleration(0.0, 30.0, f64::INFINITY, 0.0, &IdmParams::default());
     assert_eq!(a, 1.5);
@@ -241,10 +238,16 @@ fn jerk_limiter_steps_at_most_jerk_dt() {
     assert!(close(a2, -3.0));
     // At the speed limit, acceleration requests are ignored.
     assert_eq!(jerk_limited_acceleration(40.0, 40.0, 0.0, 1.5, 15.0, 0.1), 0.0);
-    // Near standstill braking is eased off so that a reaches 0 as v reaches 0:
-    // with v = 0.1 and a = -3 the ramp -1.5 then 0 removes 0.15 > 0.1, so ease off now.
-    let a = jerk_limited_acceleration(0.1, 40.0, -3.0, -3.0, 15.0, 0.1);
-    assert!(a >= -1.5 - EPS && a <= -1.0 + EPS, "{a}");
+    // Near standstill braking is eased off so that a reaches 0 exactly as v reaches 0.
+    // v = 0.3, a = -3: ramping -3, -1.5, 0 would remove 0.45 m/s > 0.3. The largest feasible
+    // braking a satisfies 0.1 * (a + (a - 1.5)) = 0.3 -> a = 2.25, i.e. -2.25 now,
+    // then v = 0.3 - 0.225 = 0.075 -> 0.1 * a = 0.075 -> a = -0.75, then v = 0 and a = 0.
+    let a1 = jerk_limited_acceleration(0.3, 40.0, -3.0, -3.0, 15.0, 0.1);
+    assert!(close(a1, -2.25), "{a1}");
+    let a2 = jerk_limited_acceleration(0.075, 40.0, a1, -3.0, 15.0, 0.1);
+    assert!(close(a2, -0.75), "{a2}");
+    let a3 = jerk_limited_acceleration(0.0, 40.0, a2, -3.0, 15.0, 0.1);
+    assert_eq!(a3, 0.0);
 }
 
 // ---------- rectangles ----------

@@ -1,0 +1,67 @@
+//! The HiGHS backend's interrupt and the configuration file.
+
+use decision::corpus::{paper_classes, SituationGenerator};
+use decision::{ConfigError, DecisionError, Layer, Planner, PlannerConfig};
+
+/// A solve asked to stop before it starts stops at its first interrupt check, and the
+/// planner still answers (the fallback, or a feasible incumbent), flagged as interrupted.
+#[test]
+fn a_requested_interrupt_stops_the_solve() {
+    let mut config = PlannerConfig::default();
+    config.solver.warm_start = false; // otherwise most solves finish at the root
+    let mut planner = Planner::new(config.clone()).unwrap();
+    let class = paper_classes()[17];
+    let mut generator = SituationGenerator::new(3);
+    // Find a situation whose solve reaches branch-and-bound, where interrupts are checked.
+    let situation = (0..500)
+        .map(|_| generator.situation(&config, &class))
+        .find(|s| planner.decide(s).map(|d| d.stats.nodes > 0 && d.layer == Layer::Nominal).unwrap_or(false))
+        .expect("some situation needs branching");
+    let handle = planner.interrupt_handle().unwrap();
+    let id = planner.next_solve_id().unwrap();
+    handle.interrupt(id);
+    let d = planner.decide(&situation).unwrap();
+    assert!(d.stats.interrupted, "{:?}", d.stats);
+    // The next solve is not affected by the stale request.
+    let again = planner.decide(&situation).unwrap();
+    assert!(!again.stats.interrupted);
+    assert_eq!(again.layer, Layer::Nominal);
+}
+
+#[test]
+fn default_config_round_trips_through_toml() {
+    let c = PlannerConfig::default();
+    let text = c.to_toml_string();
+    assert_eq!(PlannerConfig::from_toml_str(&text).unwrap(), c);
+}
+
+#[test]
+fn partial_toml_keeps_the_other_defaults() {
+    let c = PlannerConfig::from_toml_str("[hysteresis]\nenabled = false\n[solver]\nbackend = \"enumeration\"\n").unwrap();
+    assert!(!c.hysteresis.enabled);
+    assert_eq!(c.solver.backend, decision::Backend::Enumeration);
+    assert_eq!(c.cost, PlannerConfig::default().cost);
+    assert!((c.z_epsilon() - 1.644_853_6).abs() < 1e-6);
+}
+
+#[test]
+fn invalid_configs_are_rejected() {
+    assert!(matches!(
+        PlannerConfig::from_toml_str("[hysteresis]\ngamma1 = 1.5\ngamma2 = 1.4\n"),
+        Err(ConfigError::Invalid { field: "hysteresis", .. })
+    ));
+    assert!(matches!(PlannerConfig::from_toml_str("[cost]\nw_global = 50.0\n"), Err(ConfigError::Invalid { .. })));
+    assert!(matches!(PlannerConfig::from_toml_str("[timing]\nhorizon = 0\n"), Err(ConfigError::Invalid { .. })));
+    assert!(matches!(PlannerConfig::from_toml_str("[timing]\nhorizn = 3\n"), Err(ConfigError::Parse(_))));
+    let mut c = PlannerConfig::default();
+    c.recovery.gamma = 1.5;
+    assert!(matches!(Planner::new(c), Err(DecisionError::Config(_))));
+}
+
+/// The shipped deployment config is the documented default.
+#[test]
+fn deploy_config_is_the_default() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy/planner.toml")).unwrap();
+    let c = PlannerConfig::from_toml_str(&text).unwrap();
+    assert_eq!(c, PlannerConfig::default());
+}

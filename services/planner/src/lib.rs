@@ -1,0 +1,3 @@
+//! The planner service's library side: for now the solver benchmark.
+
+pub mod bench;
