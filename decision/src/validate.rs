@@ -46,7 +46,12 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
             max: config.perception.max_lanes,
         });
     }
-    within("road.lane_width_m", road.lane_width_m, f64::MIN_POSITIVE, MAX_LANE_WIDTH_M)?;
+    within(
+        "road.lane_width_m",
+        road.lane_width_m,
+        f64::MIN_POSITIVE,
+        MAX_LANE_WIDTH_M,
+    )?;
     speed("road.speed_limit_mps", road.speed_limit_mps)?;
 
     let ego = &s.ego;

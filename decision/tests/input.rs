@@ -132,5 +132,8 @@ fn beta_out_of_range_is_rejected() {
     let mut s = base(2, 3);
     s.ego.maneuver.beta = 2;
     let mut p = Planner::new(PlannerConfig::default()).unwrap();
-    assert_eq!(input_error(&mut p, &s), InputError::BetaOutOfRange { what: "ego", beta: 2 });
+    assert_eq!(
+        input_error(&mut p, &s),
+        InputError::BetaOutOfRange { what: "ego", beta: 2 }
+    );
 }

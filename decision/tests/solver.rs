@@ -15,7 +15,12 @@ fn a_requested_interrupt_stops_the_solve() {
     // Find a situation whose solve reaches branch-and-bound, where interrupts are checked.
     let situation = (0..500)
         .map(|_| generator.situation(&config, &class))
-        .find(|s| planner.decide(s).map(|d| d.stats.nodes > 0 && d.layer == Layer::Nominal).unwrap_or(false))
+        .find(|s| {
+            planner
+                .decide(s)
+                .map(|d| d.stats.nodes > 0 && d.layer == Layer::Nominal)
+                .unwrap_or(false)
+        })
         .expect("some situation needs branching");
     let handle = planner.interrupt_handle().unwrap();
     let id = planner.next_solve_id().unwrap();
@@ -37,7 +42,8 @@ fn default_config_round_trips_through_toml() {
 
 #[test]
 fn partial_toml_keeps_the_other_defaults() {
-    let c = PlannerConfig::from_toml_str("[hysteresis]\nenabled = false\n[solver]\nbackend = \"enumeration\"\n").unwrap();
+    let c =
+        PlannerConfig::from_toml_str("[hysteresis]\nenabled = false\n[solver]\nbackend = \"enumeration\"\n").unwrap();
     assert!(!c.hysteresis.enabled);
     assert_eq!(c.solver.backend, decision::Backend::Enumeration);
     assert_eq!(c.cost, PlannerConfig::default().cost);
@@ -48,11 +54,23 @@ fn partial_toml_keeps_the_other_defaults() {
 fn invalid_configs_are_rejected() {
     assert!(matches!(
         PlannerConfig::from_toml_str("[hysteresis]\ngamma1 = 1.5\ngamma2 = 1.4\n"),
-        Err(ConfigError::Invalid { field: "hysteresis", .. })
+        Err(ConfigError::Invalid {
+            field: "hysteresis",
+            ..
+        })
     ));
-    assert!(matches!(PlannerConfig::from_toml_str("[cost]\nw_global = 50.0\n"), Err(ConfigError::Invalid { .. })));
-    assert!(matches!(PlannerConfig::from_toml_str("[timing]\nhorizon = 0\n"), Err(ConfigError::Invalid { .. })));
-    assert!(matches!(PlannerConfig::from_toml_str("[timing]\nhorizn = 3\n"), Err(ConfigError::Parse(_))));
+    assert!(matches!(
+        PlannerConfig::from_toml_str("[cost]\nw_global = 50.0\n"),
+        Err(ConfigError::Invalid { .. })
+    ));
+    assert!(matches!(
+        PlannerConfig::from_toml_str("[timing]\nhorizon = 0\n"),
+        Err(ConfigError::Invalid { .. })
+    ));
+    assert!(matches!(
+        PlannerConfig::from_toml_str("[timing]\nhorizn = 3\n"),
+        Err(ConfigError::Parse(_))
+    ));
     let mut c = PlannerConfig::default();
     c.recovery.gamma = 1.5;
     assert!(matches!(Planner::new(c), Err(DecisionError::Config(_))));

@@ -8,7 +8,10 @@ use std::path::PathBuf;
 /// has integration tests; they land next to the test executable's `deps/` directory.
 pub fn binary(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(|deps| deps.parent()).expect("target profile directory");
+    let dir = exe
+        .parent()
+        .and_then(|deps| deps.parent())
+        .expect("target profile directory");
     let path = dir.join(name);
     assert!(
         path.exists(),

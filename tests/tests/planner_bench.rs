@@ -18,7 +18,11 @@ fn bench_reports_full_agreement_and_ordered_percentiles() {
     for backend in ["milp", "enumeration"] {
         let t = &report["backends"][backend];
         assert_eq!(t["solved"], 72);
-        let (p50, p99, max) = (t["p50_us"].as_u64().unwrap(), t["p99_us"].as_u64().unwrap(), t["max_us"].as_u64().unwrap());
+        let (p50, p99, max) = (
+            t["p50_us"].as_u64().unwrap(),
+            t["p99_us"].as_u64().unwrap(),
+            t["max_us"].as_u64().unwrap(),
+        );
         assert!(p50 <= p99 && p99 <= max, "{t}");
     }
     let target = &report["target_class"]["class"];

@@ -6,7 +6,10 @@ use decision::PlannerConfig;
 
 #[test]
 fn default_config_prints_the_defaults_as_toml() {
-    let out = Command::new(env!("CARGO_BIN_EXE_planner")).arg("default-config").output().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_planner"))
+        .arg("default-config")
+        .output()
+        .unwrap();
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(PlannerConfig::from_toml_str(&text).unwrap(), PlannerConfig::default());
