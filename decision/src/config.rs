@@ -180,6 +180,16 @@ pub struct Hysteresis {
     pub eps_max_m: f64,
     pub gamma1: f64,
     pub gamma2: f64,
+    /// Let the hysteresis slack reach down to the hard safety margin `d_hc` instead of
+    /// stopping at `d_HS = d_rel - d_trig`.
+    ///
+    /// With `d_HS` the corrective row demands `gap >= d_trig` at every step the moment it
+    /// triggers — which is exactly when some predicted gap has fallen below `d_trig` — so
+    /// the nominal problem is often infeasible on triggering and the fallback answers. The
+    /// paper calls the band a buffer whose "strict enforcement is unnecessary" while safety
+    /// rests on `d_hc`; with this on, the band is priced (`w_s` per metre) but never harder
+    /// than `d_hc`. Measured on the campaign: see `docs/formulation-notes.md`.
+    pub soft_band: bool,
 }
 
 impl Default for Hysteresis {
@@ -191,6 +201,7 @@ impl Default for Hysteresis {
             eps_max_m: 22.0,
             gamma1: 1.0,
             gamma2: 1.4,
+            soft_band: true,
         }
     }
 }
@@ -213,6 +224,15 @@ pub struct CostWeights {
     /// gains at most `0.5 * 0.6 * 3 = 0.9 < w_beta[+1] = 1`, so a slow ego would never speed up.
     /// At 1.0 a single accelerating step pays (`1.8 > 1`); see `docs/formulation-notes.md`.
     pub w_speed: f64,
+    /// Terminal lane value, per m/s by which traffic ahead in the lane the plan ends in holds
+    /// the ego below its desired speed.
+    ///
+    /// Not in the paper. A lane change takes 3 s and the horizon is 1.2 s, so within the
+    /// horizon the ego still occupies its old lane and a change can never pay: without an
+    /// estimate of what lies beyond the horizon the planner would never overtake.
+    pub w_lane_speed: f64,
+    /// How far ahead an SV counts as holding a lane's speed, m.
+    pub lane_lookahead_m: f64,
 }
 
 impl Default for CostWeights {
@@ -223,6 +243,8 @@ impl Default for CostWeights {
             w_lane_change: 4.0,
             w_beta: [2.0, 0.0, 1.0],
             w_speed: 1.0,
+            w_lane_speed: 3.0,
+            lane_lookahead_m: 100.0,
         }
     }
 }

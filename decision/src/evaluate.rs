@@ -55,6 +55,9 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
         }
         cost += w.w_speed * (problem.desired_speed - r.v[h]).abs();
     }
+    if let Some(last) = r.maneuvers.last() {
+        cost += problem.lane_value[(last.lane - 1) as usize];
+    }
     cost
 }
 
@@ -84,10 +87,12 @@ pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Eva
             let Some(need_hard) = need_hard else {
                 continue; // no shared lane at this step
             };
+            // The band holds on the mean prediction, where its lanes meet the ego's.
             let need_hys = match c.corrective {
-                Some(frozen) => shortfall(problem, i, h, r.x[h], r.occupancy[h], frozen.release_m)
-                    .expect("same branches as the hard rows"),
-                None => f64::NEG_INFINITY,
+                Some(frozen) if c.mean_occupancy[h].intersects(r.occupancy[h]) => {
+                    frozen.release_m - c.gap(c.mean_x[h], r.x[h], problem.length)
+                }
+                _ => f64::NEG_INFINITY,
             };
             let d_hs = c.slack_bound();
             let (slack_h, slack_g) = match mode {

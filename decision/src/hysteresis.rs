@@ -3,19 +3,25 @@
 use crate::idm::Thresholds;
 use crate::types::CorrectiveEntry;
 
-/// New corrective state of one SV.
+/// New corrective state of one SV ahead in the ego's lane (`None` in both gaps when it no
+/// longer is, which releases it).
 ///
-/// `min_gap` is the smallest predicted gap to the SV over the horizon and its kept branches,
-/// on the ego's nominal rollout (keep lane and `beta`), counting only steps where the SV is
-/// ahead in a lane the ego occupies; `None` when it never is.
+/// `min_gap` is the smallest predicted gap over the horizon and the SV's kept branches on the
+/// ego's nominal rollout (keep lane and `beta`); `min_gap_resuming` the same on the rollout
+/// where the ego resumes accelerating.
 ///
-/// Trigger when some gap falls below the *current* trigger distance (thresholds are frozen at
-/// that moment; a re-trigger keeps the original freeze). Release when every gap reaches the
-/// *frozen* release distance, or when the SV is no longer ahead in the ego's lane.
+/// Trigger when some nominal gap falls below the *current* trigger distance (thresholds are
+/// frozen at that moment; a re-trigger keeps the original freeze). Release when every gap
+/// reaches the *frozen* release distance even if the ego resumed accelerating: the slack
+/// drives the gap to exactly the release distance, so releasing there (on the nominal
+/// rollout) would let the speed term pull the ego straight back into the band — the
+/// oscillation hysteresis is meant to remove. The regime is kept while the ego follows, as in
+/// the paper's Case 1, until the gap is genuinely safe or the SV leaves the ego's lane.
 pub fn refresh(
     sv_id: u32,
     previous: Option<CorrectiveEntry>,
     min_gap: Option<f64>,
+    min_gap_resuming: Option<f64>,
     current: Thresholds,
 ) -> Option<CorrectiveEntry> {
     let gap = min_gap?;
@@ -27,7 +33,7 @@ pub fn refresh(
         }));
     }
     match previous {
-        Some(frozen) if gap >= frozen.release_m => None,
+        Some(frozen) if min_gap_resuming.unwrap_or(gap) >= frozen.release_m => None,
         other => other,
     }
 }
@@ -46,16 +52,16 @@ mod tests {
 
     #[test]
     fn triggers_below_the_trigger_distance_and_freezes() {
-        let e = refresh(7, None, Some(29.0), t(30.0, 36.0)).unwrap();
+        let e = refresh(7, None, Some(29.0), Some(28.0), t(30.0, 36.0)).unwrap();
         assert_eq!((e.sv_id, e.trigger_m, e.release_m), (7, 30.0, 36.0));
         // Still closer than the (now smaller) trigger: the freeze from the first trigger stays.
-        let again = refresh(7, Some(e), Some(20.0), t(25.0, 29.0)).unwrap();
+        let again = refresh(7, Some(e), Some(20.0), Some(19.0), t(25.0, 29.0)).unwrap();
         assert_eq!(again, e);
     }
 
     #[test]
     fn does_not_trigger_at_or_above_the_trigger_distance() {
-        assert_eq!(refresh(1, None, Some(30.0), t(30.0, 36.0)), None);
+        assert_eq!(refresh(1, None, Some(30.0), Some(29.0), t(30.0, 36.0)), None);
     }
 
     #[test]
@@ -66,7 +72,10 @@ mod tests {
             trigger_m: 30.0,
         };
         // Above the current trigger but below the frozen release: keep.
-        assert_eq!(refresh(1, Some(frozen), Some(33.0), t(28.0, 31.0)), Some(frozen));
+        assert_eq!(
+            refresh(1, Some(frozen), Some(33.0), Some(32.0), t(28.0, 31.0)),
+            Some(frozen)
+        );
     }
 
     #[test]
@@ -78,8 +87,25 @@ mod tests {
         };
         // The ego slowed, so the current release (31) is below the gap (33): the frozen
         // release (36) still holds it in corrective mode.
-        assert_eq!(refresh(1, Some(frozen), Some(33.0), t(26.0, 31.0)), Some(frozen));
-        assert_eq!(refresh(1, Some(frozen), Some(36.0), t(26.0, 31.0)), None);
+        assert_eq!(
+            refresh(1, Some(frozen), Some(33.0), Some(33.0), t(26.0, 31.0)),
+            Some(frozen)
+        );
+        assert_eq!(refresh(1, Some(frozen), Some(36.5), Some(36.0), t(26.0, 31.0)), None);
+    }
+
+    #[test]
+    fn holds_while_resuming_would_fall_back_into_the_band() {
+        let frozen = CorrectiveEntry {
+            sv_id: 1,
+            release_m: 36.0,
+            trigger_m: 30.0,
+        };
+        // Cruising keeps the gap at the release distance, but accelerating would dip below it.
+        assert_eq!(
+            refresh(1, Some(frozen), Some(36.0), Some(35.2), t(26.0, 31.0)),
+            Some(frozen)
+        );
     }
 
     #[test]
@@ -89,6 +115,6 @@ mod tests {
             release_m: 36.0,
             trigger_m: 30.0,
         };
-        assert_eq!(refresh(1, Some(frozen), None, t(30.0, 36.0)), None);
+        assert_eq!(refresh(1, Some(frozen), None, None, t(30.0, 36.0)), None);
     }
 }

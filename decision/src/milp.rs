@@ -110,7 +110,13 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Layout), Infeasible
             m.add_col(0.0, 0.0, 1.0, true),
             m.add_col(0.0, 0.0, 1.0, true),
         ];
-        let lane: Vec<usize> = (0..n).map(|_| m.add_col(0.0, 0.0, 1.0, true)).collect();
+        // The terminal lane value is charged on the last step's lane.
+        let lane: Vec<usize> = (0..n)
+            .map(|l| {
+                let cost = if s + 1 == h_len { problem.lane_value[l] } else { 0.0 };
+                m.add_col(cost, 0.0, 1.0, true)
+            })
+            .collect();
         let beta = [
             m.add_col(w.w_beta[0], 0.0, 1.0, true),
             m.add_col(w.w_beta[1], 0.0, 1.0, true),
@@ -206,26 +212,24 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Layout), Infeasible
             let c_s = problem.x0 + (s + 1) as f64 * dt * problem.v0;
             let (x_lo, x_hi) = reach[s];
             for l in 1..=problem.lanes {
-                // Tightest branch in this lane: the nearest SV position towards the ego.
+                // Hard rows: the tightest branch in this lane (the nearest SV position towards
+                // the ego). The band row: the mean prediction, where its lanes include l.
                 let tight = c
                     .branches
                     .iter()
                     .filter(|b| b.occupancy[s].contains(l))
                     .map(|b| b.x[s])
                     .reduce(if c.ahead { f64::min } else { f64::max });
-                let Some(x_b) = tight else { continue };
-                let mut rows: Vec<(f64, bool)> = Vec::with_capacity(2);
-                match c.corrective {
-                    Some(frozen) => {
-                        rows.push((frozen.release_m, true));
-                        // The band already implies gap >= trigger >= d_hc when it holds.
-                        if frozen.trigger_m < c.hard[s] {
-                            rows.push((c.hard[s], false));
-                        }
-                    }
-                    None => rows.push((c.hard[s], false)),
+                let mut rows: Vec<(f64, f64, bool)> = Vec::with_capacity(2);
+                if let Some(x_b) = tight {
+                    rows.push((x_b, c.hard[s], false));
                 }
-                for (rhs, hysteresis_row) in rows {
+                if let Some(frozen) = c.corrective {
+                    if c.mean_occupancy[s].contains(l) {
+                        rows.push((c.mean_x[s], frozen.release_m, true));
+                    }
+                }
+                for (x_b, rhs, hysteresis_row) in rows {
                     let violation = |x: f64| rhs + problem.length - sign * (x_b - x);
                     let (worst, best) = if c.ahead {
                         (violation(x_hi), violation(x_lo))

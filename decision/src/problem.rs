@@ -23,6 +23,14 @@ pub struct SvConstraint {
     pub corrective: Option<CorrectiveEntry>,
     /// Layer A bound on the global slack, `gamma * d_idm`.
     pub relax_bound: f64,
+    /// Mean prediction (probability-weighted over the kept branches) of the SV's position per
+    /// step, and the lanes of its most probable branch: the hysteresis works on the mean gap
+    /// `mu_Delta` as in the paper, while the hard rows hold for every branch.
+    pub mean_x: Vec<f64>,
+    pub mean_occupancy: Vec<LaneSet>,
+    /// Bound on the hysteresis slack (0 unless corrective): `d_HS`, or with
+    /// `hysteresis.soft_band` at least down to the hard margin.
+    pub slack_max: f64,
     pub branches: Vec<Branch>,
 }
 
@@ -35,7 +43,7 @@ impl SvConstraint {
 
     /// Hysteresis slack bound `d_HS`.
     pub fn slack_bound(&self) -> f64 {
-        self.corrective.map_or(0.0, |c| c.release_m - c.trigger_m)
+        self.slack_max
     }
 }
 
@@ -57,6 +65,8 @@ pub struct Problem {
     pub speed_cap: f64,
     pub length: f64,
     pub weights: CostWeights,
+    /// Terminal cost of ending the horizon in lane `l` (index `l - 1`).
+    pub lane_value: Vec<f64>,
     pub svs: Vec<SvConstraint>,
     pub tolerance: f64,
 }
@@ -66,6 +76,31 @@ pub struct Problem {
 pub struct Prepared {
     pub problem: Problem,
     pub memory: PlannerMemory,
+}
+
+/// The ego's rollout when it resumes accelerating: `beta` steps up by one each step until it
+/// reaches +1, in its target lane.
+fn resuming_rollout(
+    kin: &Kinematics,
+    lanes: u8,
+    start: Maneuver,
+    x0: f64,
+    v0: f64,
+    occupancy0: LaneSet,
+    horizon: usize,
+) -> crate::model::Rollout {
+    let mut beta = start.beta;
+    let actions: Vec<Action> = (0..horizon)
+        .map(|_| {
+            let up = i8::from(beta < 1);
+            beta += up;
+            Action {
+                lateral: 0,
+                longitudinal: up,
+            }
+        })
+        .collect();
+    rollout(kin, lanes, start, x0, v0, occupancy0, &actions).expect("stepping beta up to +1 is admissible")
 }
 
 /// Build the problem. The situation must have passed `validate`.
@@ -80,10 +115,20 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
     let z = config.z_epsilon();
     let variances = longitudinal_variances(config);
 
-    // Nominal ego rollout (keep lane and beta) for the hysteresis refresh.
+    // Nominal ego rollout (keep lane and beta) for the hysteresis trigger, and the resuming
+    // rollout (beta stepping up to accelerating) for its release.
     let keep = vec![Action::KEEP; config.timing.horizon];
     let nominal = rollout(&kin, road.lanes, ego.maneuver, ego.x_m, ego.v_mps, occupancy0, &keep)
         .expect("keeping is always admissible");
+    let resuming = resuming_rollout(
+        &kin,
+        road.lanes,
+        ego.maneuver,
+        ego.x_m,
+        ego.v_mps,
+        occupancy0,
+        config.timing.horizon,
+    );
 
     let in_window = |sv: &SvObservation| {
         let dx = sv.x_m - ego.x_m;
@@ -108,6 +153,10 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
             beta: beta_from_accel(sv.a_mps2, config.prediction.accel_dead_band_mps2),
         };
         let branches = predict_branches(config, &kin, road.lanes, start, sv.x_m, sv.v_mps, sv_occ);
+        let mean_x: Vec<f64> = (0..config.timing.horizon)
+            .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())
+            .collect();
+        let mean_occupancy = branches[0].occupancy.clone();
         let mut constraint = SvConstraint {
             id: sv.id,
             ahead,
@@ -115,28 +164,58 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
             hard,
             corrective: None,
             relax_bound: config.recovery.gamma * d_idm,
+            slack_max: 0.0,
+            mean_x,
+            mean_occupancy,
             branches,
         };
-        if config.hysteresis.enabled && ahead {
-            let min_gap = constraint
-                .branches
-                .iter()
-                .flat_map(|b| {
-                    (0..b.x.len())
-                        .filter(|&h| b.occupancy[h].intersects(nominal.occupancy[h]))
-                        .map(|h| constraint.gap(b.x[h], nominal.x[h], length))
-                        .collect::<Vec<_>>()
-                })
-                .reduce(f64::min);
+        // Hysteresis concerns the SV the ego follows: ahead and in a lane the ego occupies now.
+        if config.hysteresis.enabled && ahead && sv_occ.intersects(occupancy0) {
+            let min_gap_on = |ego_x: &[f64]| {
+                (0..constraint.mean_x.len())
+                    .filter(|&h| constraint.mean_occupancy[h].intersects(nominal.occupancy[h]))
+                    .map(|h| constraint.gap(constraint.mean_x[h], ego_x[h], length))
+                    .reduce(f64::min)
+            };
             let current = thresholds(&config.hysteresis, d_idm, constraint.hard[0]);
             let previous = s.memory.corrective.iter().find(|e| e.sv_id == sv.id).copied();
-            constraint.corrective = hysteresis::refresh(sv.id, previous, min_gap, current);
+            constraint.corrective = hysteresis::refresh(
+                sv.id,
+                previous,
+                min_gap_on(&nominal.x),
+                min_gap_on(&resuming.x),
+                current,
+            );
         }
         if let Some(entry) = constraint.corrective {
+            let band = entry.release_m - entry.trigger_m;
+            let to_hard = entry.release_m - constraint.hard.iter().copied().fold(f64::MIN, f64::max);
+            constraint.slack_max = if config.hysteresis.soft_band {
+                band.max(to_hard)
+            } else {
+                band
+            };
             corrective_entries.push(entry);
         }
         svs.push(constraint);
     }
+
+    // Speed the ego could hold in each lane beyond the horizon: its desired speed, or less when
+    // an SV ahead in that lane (within the lookahead) is slower.
+    let achievable: Vec<f64> = (1..=road.lanes)
+        .map(|lane| {
+            s.svs
+                .iter()
+                .filter(|sv| sv.x_m > ego.x_m && sv.x_m - ego.x_m <= config.cost.lane_lookahead_m)
+                .filter(|sv| lanes_at(road, sv.y_m, tol).is_ok_and(|occ| occ.contains(lane)))
+                .map(|sv| sv.v_mps)
+                .fold(ego.desired_speed_mps, f64::min)
+        })
+        .collect();
+    let lane_value: Vec<f64> = achievable
+        .iter()
+        .map(|v| config.cost.w_lane_speed * (ego.desired_speed_mps - v).max(0.0))
+        .collect();
 
     let problem = Problem {
         lanes: road.lanes,
@@ -151,6 +230,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         speed_cap: road.speed_limit_mps.max(ego.v_mps),
         length,
         weights: config.cost.clone(),
+        lane_value,
         svs,
         tolerance: config.solver.feasibility_tolerance,
     };

@@ -1,0 +1,46 @@
+//! The wire contract of the HMDP planner service, shared by every process.
+//!
+//! * [`PlanRequest`] (a perception snapshot) and [`PlanResponse`] (a decision or a typed
+//!   rejection): one definition each, `#[repr(C)]` with fixed capacity so that they are
+//!   iceoryx2 zero-copy payloads, and serde types for bincode and JSON.
+//! * Codecs: [`encode_bincode`] / [`decode_bincode`] with a fixed configuration
+//!   ([`BINCODE_CONFIG`]), [`encode_json`] / [`decode_json`]; errors are [`WireError`].
+//! * [`PlanRequest::validate`]: what the wire alone can check.
+//! * [`names`]: iceoryx2 service names, Zenoh key expressions, encodings.
+//! * With the `decision` feature: conversions to and from the decision core's types.
+//!
+//! The byte layout, the JSON form and the versioning rules are in `docs/protocol.md`.
+
+// The containers log through iceoryx2-log, which links against the logger this crate
+// provides; without this line the linker may drop it.
+use iceoryx2_bb_loggers as _;
+
+mod codec;
+#[cfg(feature = "decision")]
+mod convert;
+mod enums;
+mod messages;
+pub mod names;
+mod serde_util;
+mod validate;
+
+pub use codec::{
+    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty, WireError,
+    WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
+};
+pub use enums::{Layer, RejectReason};
+pub use messages::{
+    bounded, Action, ActionList, CorrectiveEntry, CorrectiveList, Decided, EgoState, FieldName, Maneuver, Outcome,
+    OutcomeRef, PlanRequest, PlanResponse, PlanStep, PlanStepList, PlannerMemory, Rejected, Road, SvList,
+    SvObservation, DEFAULT_DEADLINE, FIELD_NAME_CAPACITY, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS, PROTOCOL_VERSION,
+};
+pub use names::*;
+
+/// The iceoryx2 building blocks the payloads are made of, re-exported so that users need no
+/// direct dependency: `StaticVec` with its `Vector` trait (`push`, `len`, ...), `StaticString`,
+/// and the `ZeroCopySend` trait (the one `iceoryx2::prelude` re-exports).
+pub mod containers {
+    pub use iceoryx2_bb_container::string::{StaticString, String};
+    pub use iceoryx2_bb_container::vector::{StaticVec, Vector};
+    pub use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+}

@@ -1,0 +1,19 @@
+//! Names shared by every process: transport services, key expressions, encodings.
+
+/// iceoryx2 request-response service: [`PlanRequest`](crate::PlanRequest) in,
+/// [`PlanResponse`](crate::PlanResponse) out.
+pub const ICEORYX2_PLAN_SERVICE: &str = "hmdp/planner/plan";
+/// iceoryx2 event service paired with [`ICEORYX2_PLAN_SERVICE`]: notified when a request
+/// or a response is ready, so that both sides can wait on a WaitSet instead of polling.
+pub const ICEORYX2_PLAN_EVENT_SERVICE: &str = "hmdp/planner/plan/event";
+
+/// Zenoh key expression of the planner's queryable: the query payload is a
+/// [`PlanRequest`](crate::PlanRequest), the reply a [`PlanResponse`](crate::PlanResponse).
+pub const ZENOH_PLAN_KEY: &str = "hmdp/planner/plan";
+/// Zenoh key expression on which the planner publishes its statistics.
+pub const ZENOH_STATS_KEY: &str = "hmdp/planner/stats";
+
+/// Encoding (Zenoh encoding / HTTP content type) of the bincode form.
+pub const ENCODING_BINCODE: &str = "application/x-hmdp-bincode";
+/// Encoding of the JSON form.
+pub const ENCODING_JSON: &str = "application/json";

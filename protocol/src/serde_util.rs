@@ -1,0 +1,105 @@
+//! Serde adapters for the fixed-capacity iceoryx2 containers.
+//!
+//! `StaticVec` and `StaticString` ship serde impls in iceoryx2-bb-container 0.10, but their
+//! errors cannot be told apart from other failures and `StaticString` panics when asked to
+//! serialize bytes that are not UTF-8. These adapters keep the same wire form (a sequence of
+//! the live elements, a string) with errors the codecs classify and no panics.
+
+use core::fmt;
+use core::marker::PhantomData;
+
+use iceoryx2_bb_container::string::{StaticString, String as _};
+use iceoryx2_bb_container::vector::{StaticVec, Vector};
+use serde::de::{self, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// Every capacity error message contains this phrase; [`crate::codec`] maps it to
+/// [`crate::WireError::CapacityExceeded`].
+pub(crate) const CAPACITY_MARK: &str = "exceeds the capacity";
+
+/// `StaticVec<T, N>` as a sequence of its live elements; more than `N` is an error.
+pub(crate) mod bounded_vec {
+    use super::*;
+
+    pub fn serialize<T: Serialize, const N: usize, S: Serializer>(
+        v: &StaticVec<T, N>,
+        serializer: S,
+    ) -> Result<S::Ok, S::Error> {
+        serializer.collect_seq(v.as_slice())
+    }
+
+    pub fn deserialize<'de, T: Deserialize<'de>, const N: usize, D: Deserializer<'de>>(
+        deserializer: D,
+    ) -> Result<StaticVec<T, N>, D::Error> {
+        deserializer.deserialize_seq(BoundedVisitor::<T, N>(PhantomData))
+    }
+
+    struct BoundedVisitor<T, const N: usize>(PhantomData<T>);
+
+    impl<'de, T: Deserialize<'de>, const N: usize> Visitor<'de> for BoundedVisitor<T, N> {
+        type Value = StaticVec<T, N>;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "a list of at most {N} elements")
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+            // bincode announces the length up front: refuse before reading any element.
+            if let Some(len) = seq.size_hint() {
+                if len > N {
+                    return Err(de::Error::custom(format_args!(
+                        "a list of {len} elements {CAPACITY_MARK} of {N}"
+                    )));
+                }
+            }
+            let mut out = StaticVec::<T, N>::new();
+            while let Some(element) = seq.next_element()? {
+                if out.push(element).is_err() {
+                    return Err(de::Error::custom(format_args!(
+                        "a list of more than {N} elements {CAPACITY_MARK} of {N}"
+                    )));
+                }
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// `StaticString<N>` as a string of at most `N` ASCII characters (no NUL).
+pub(crate) mod bounded_str {
+    use super::*;
+
+    pub fn serialize<const N: usize, S: Serializer>(s: &StaticString<N>, serializer: S) -> Result<S::Ok, S::Error> {
+        // Constructed strings are ASCII; bytes written by a faulty peer are replaced, not a panic.
+        serializer.serialize_str(&std::string::String::from_utf8_lossy(s.as_bytes()))
+    }
+
+    pub fn deserialize<'de, const N: usize, D: Deserializer<'de>>(
+        deserializer: D,
+    ) -> Result<StaticString<N>, D::Error> {
+        deserializer.deserialize_str(StrVisitor::<N>)
+    }
+
+    struct StrVisitor<const N: usize>;
+
+    impl<const N: usize> Visitor<'_> for StrVisitor<N> {
+        type Value = StaticString<N>;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "an ASCII string of at most {N} characters")
+        }
+
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<Self::Value, E> {
+            if v.len() > N {
+                return Err(E::custom(format_args!(
+                    "a string of {} bytes {CAPACITY_MARK} of {N}",
+                    v.len()
+                )));
+            }
+            if !v.bytes().all(|b| (1..128).contains(&b)) {
+                return Err(E::custom("string contains non-ASCII or NUL characters"));
+            }
+            StaticString::from_bytes(v.as_bytes()).map_err(|e| E::custom(format_args!("invalid string: {e:?}")))
+        }
+    }
+}

@@ -1,0 +1,166 @@
+//! Conversions to and from the decision core (feature `decision`, always on for the tests
+//! through the crate's dev-dependency on itself).
+#![cfg(feature = "decision")]
+
+mod common;
+
+use std::collections::HashSet;
+
+use common::*;
+use decision::{InputError, PlannerConfig};
+use proptest::prelude::*;
+use protocol::*;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn situation_round_trips_through_the_request(req in request()) {
+        let situation = req.to_situation();
+        let back = PlanRequest::from_situation(req.vehicle_id, req.sequence, req.timestamp_ns, &situation).unwrap();
+        prop_assert_eq!(back.to_situation(), situation.clone());
+        // And through the bytes.
+        let decoded: PlanRequest = decode_bincode(&encode_bincode(&back)).unwrap();
+        prop_assert_eq!(decoded.to_situation(), situation);
+        let mut with_deadline = back;
+        with_deadline.deadline_us = req.deadline_us;
+        prop_assert_eq!(with_deadline, req);
+    }
+}
+
+#[test]
+fn situations_beyond_capacity_do_not_convert() {
+    let mut situation = example_request().to_situation();
+    situation.svs = (0..17)
+        .map(|id| decision::SvObservation {
+            id,
+            x_m: 10.0 * f64::from(id),
+            y_m: 3.5,
+            v_mps: 20.0,
+            a_mps2: 0.0,
+        })
+        .collect();
+    assert!(matches!(
+        PlanRequest::from_situation(1, 1, 1, &situation),
+        Err(WireError::CapacityExceeded(_))
+    ));
+    let mut situation = example_request().to_situation();
+    situation.memory.previous_plan = vec![decision::Action::KEEP; 7];
+    assert!(matches!(
+        PlanRequest::from_situation(1, 1, 1, &situation),
+        Err(WireError::CapacityExceeded(_))
+    ));
+}
+
+fn every_input_error() -> Vec<InputError> {
+    vec![
+        InputError::NonFinite { field: "ego.x_m" },
+        InputError::OutOfRange {
+            field: "sv.a_mps2",
+            value: 1e3,
+            min: -100.0,
+            max: 100.0,
+        },
+        InputError::NegativeSpeed {
+            field: "ego.v_mps",
+            value: -1.0,
+        },
+        InputError::LaneCount { lanes: 0, max: 8 },
+        InputError::LaneOutOfRange {
+            what: "ego target",
+            lane: 5,
+            lanes: 3,
+        },
+        InputError::BetaOutOfRange { what: "ego", beta: 3 },
+        InputError::DuplicateSvId { id: 4 },
+        InputError::TooManyVehicles {
+            count: 17,
+            capacity: 16,
+        },
+        InputError::InvalidMemory {
+            why: "release below trigger",
+        },
+    ]
+}
+
+#[test]
+fn input_errors_get_distinct_reasons() {
+    let errors = every_input_error();
+    let mut codes = HashSet::new();
+    for e in &errors {
+        let rejected = Rejected::from(e);
+        let reason = rejected.reason().unwrap();
+        assert_eq!(RejectReason::from(e), reason);
+        assert!((10..30).contains(&reason.code()), "{e:?} -> {reason:?}");
+        assert!(!rejected.field().is_empty(), "{e:?}");
+        assert!(codes.insert(reason.code()), "{e:?} shares code {}", reason.code());
+    }
+    assert_eq!(codes.len(), errors.len());
+    let r = Rejected::from(&InputError::NegativeSpeed {
+        field: "ego.v_mps",
+        value: -1.0,
+    });
+    assert_eq!((r.reason(), r.field()), (Ok(RejectReason::NegativeSpeed), "ego.v_mps"));
+    let r = Rejected::from(&InputError::LaneOutOfRange {
+        what: "SV position",
+        lane: 9,
+        lanes: 3,
+    });
+    assert_eq!(r.field(), "sv.y_m");
+}
+
+#[test]
+fn the_planner_rejects_through_the_protocol() {
+    let mut req = example_request();
+    req.ego.v_mps = -3.0;
+    assert_eq!(req.validate(), Ok(()));
+    let mut planner = decision::Planner::new(PlannerConfig::default()).unwrap();
+    let err = planner.decide(&req.to_situation()).unwrap_err();
+    let resp = PlanResponse::rejected(req.vehicle_id, req.sequence, Rejected::from(&err), 0);
+    let decoded: PlanResponse = decode_json_str(&encode_json(&resp)).unwrap();
+    let rejected = decoded.outcome.as_rejected().unwrap();
+    assert_eq!(rejected.reason(), Ok(RejectReason::NegativeSpeed));
+    assert_eq!(rejected.field(), "ego.v_mps");
+}
+
+#[test]
+fn a_decision_travels_and_its_memory_comes_back() {
+    let req = example_request();
+    let situation = req.to_situation();
+    let mut planner = decision::Planner::new(PlannerConfig::default()).unwrap();
+    let decision = planner.decide(&situation).unwrap();
+    let resp = PlanResponse::from_decision(&req, &decision, 17).unwrap();
+    assert_eq!((resp.vehicle_id, resp.sequence, resp.queue_us), (7, 42, 17));
+    assert_eq!(resp.validate(), Ok(()));
+
+    let decoded: PlanResponse = decode_bincode(&encode_bincode(&resp)).unwrap();
+    let decided = decoded.outcome.as_decided().unwrap();
+    assert_eq!(decided.layer(), Ok(Layer::from(decision.layer)));
+    assert_eq!(decision::Action::from(decided.action), decision.action);
+    assert_eq!(decision::Maneuver::from(decided.next_maneuver), decision.next_maneuver);
+    let plan: Vec<decision::PlanStep> = decided.plan.iter().map(|&s| s.into()).collect();
+    assert_eq!(plan, decision.plan);
+    assert_eq!(decision::PlannerMemory::from(&decided.memory), decision.memory);
+
+    // The next request carries the memory back.
+    let mut next = req.clone();
+    next.sequence += 1;
+    next.memory = decided.memory.clone();
+    assert_eq!(next.to_situation().memory, decision.memory);
+    // The fallback layer maps too.
+    let fallback = decision::fallback_only(&PlannerConfig::default(), &situation).unwrap();
+    let decided = Decided::try_from(&fallback).unwrap();
+    assert_eq!(decided.layer(), Ok(Layer::Fallback));
+}
+
+#[test]
+fn layers_map_one_to_one() {
+    for (core, wire) in [
+        (decision::Layer::Nominal, Layer::Nominal),
+        (decision::Layer::GlobalRelaxation, Layer::GlobalRelaxation),
+        (decision::Layer::Fallback, Layer::Fallback),
+    ] {
+        assert_eq!(Layer::from(core), wire);
+        assert_eq!(wire.name(), core.name());
+    }
+}

@@ -1,0 +1,543 @@
+//! Case 3: the randomized campaign over traffic configurations, in parallel.
+//!
+//! Work items are (configuration, trial, driver) triples pulled from a shared counter by
+//! worker threads, each with its own planners. Every episode depends only on its seeds, and
+//! results are aggregated in the fixed item order, so they do not depend on the thread count.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use decision::PlannerConfig;
+use serde::{Deserialize, Serialize};
+use traffic::{Scenario, SimParams, TrafficConfig};
+
+use crate::episode::{run_episode, Driver, EpisodeSpec};
+use crate::error::{Result, SimClientError};
+use crate::link::{PlannerLink, Transport};
+use crate::metrics::{clean, EpisodeMetrics, LayerCounts, SolveTimeStats};
+
+/// Episode duration of the campaign (75 decisions at T_h = 0.4 s), s.
+pub const CAMPAIGN_DURATION_S: f64 = 30.0;
+
+/// One traffic configuration and its trial count.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CampaignEntry {
+    /// Configuration id (Table I id for the paper table).
+    pub id: u32,
+    /// Scene parameters.
+    pub traffic: TrafficConfig,
+    /// Number of trials.
+    pub trials: u32,
+}
+
+/// The 18 configurations of Table I with the paper's trial counts.
+pub fn paper_entries() -> Vec<CampaignEntry> {
+    TrafficConfig::paper_table()
+        .into_iter()
+        .map(|e| CampaignEntry {
+            id: u32::from(e.id),
+            traffic: e.config,
+            trials: e.trials,
+        })
+        .collect()
+}
+
+/// A configuration as written in a `--config` file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CustomConfig {
+    /// Optional id (default: position in the list, from 1).
+    pub id: Option<u32>,
+    /// Lane count, 2..=5.
+    pub lanes: u8,
+    /// Number of SVs.
+    #[serde(alias = "svs")]
+    pub sv_count: u32,
+    /// Speed range `[lo, hi]` (m/s).
+    pub speed_range: (f64, f64),
+    /// Number of trials.
+    pub trials: u32,
+    /// Initial position range (default `[0, 500]`).
+    pub x_range: Option<(f64, f64)>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ConfigFile {
+    List(Vec<CustomConfig>),
+    Table {
+        #[serde(alias = "configs")]
+        config: Vec<CustomConfig>,
+    },
+}
+
+fn entries_from(list: Vec<CustomConfig>) -> Result<Vec<CampaignEntry>> {
+    if list.is_empty() {
+        return Err(SimClientError::Config("the configuration list is empty".into()));
+    }
+    let entries: Vec<CampaignEntry> = list
+        .into_iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let mut traffic = TrafficConfig::new(c.lanes, c.sv_count, c.speed_range);
+            if let Some(x) = c.x_range {
+                traffic.x_range = x;
+            }
+            CampaignEntry {
+                id: c.id.unwrap_or(k as u32 + 1),
+                traffic,
+                trials: c.trials,
+            }
+        })
+        .collect();
+    for (k, e) in entries.iter().enumerate() {
+        e.traffic
+            .validate()
+            .map_err(|err| SimClientError::Config(format!("configuration {}: {err}", e.id)))?;
+        if entries[..k].iter().any(|o| o.id == e.id) {
+            return Err(SimClientError::Config(format!("duplicate configuration id {}", e.id)));
+        }
+    }
+    Ok(entries)
+}
+
+/// Parses a configuration list: JSON (a list, or `{"config": [...]}`) or TOML
+/// (`[[config]]` tables). Each item: `lanes`, `sv_count`, `speed_range`, `trials`, optional
+/// `id` and `x_range`.
+pub fn parse_entries(text: &str, json: bool) -> Result<Vec<CampaignEntry>> {
+    let file: ConfigFile = if json {
+        serde_json::from_str(text)?
+    } else {
+        toml::from_str(text).map_err(|e| SimClientError::Config(e.to_string()))?
+    };
+    match file {
+        ConfigFile::List(l) | ConfigFile::Table { config: l } => entries_from(l),
+    }
+}
+
+/// Reads a configuration file; `.json` is JSON, anything else TOML.
+pub fn load_entries(path: &Path) -> Result<Vec<CampaignEntry>> {
+    let text = std::fs::read_to_string(path).map_err(|e| SimClientError::io(path, e))?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    parse_entries(&text, json)
+}
+
+/// Scales every trial count by `scale`, keeping at least one trial per configuration.
+pub fn scale_trials(entries: &[CampaignEntry], scale: f64) -> Result<Vec<CampaignEntry>> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(SimClientError::Config("--trials-scale must be positive".into()));
+    }
+    Ok(entries
+        .iter()
+        .map(|e| CampaignEntry {
+            trials: ((f64::from(e.trials) * scale).round() as u32).max(1),
+            ..*e
+        })
+        .collect())
+}
+
+/// Who drives the ego in a campaign run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriverKind {
+    /// The planner as configured.
+    Planner,
+    /// The planner with hysteresis off.
+    PlannerNoHysteresis,
+    /// The simulator's IDM + MOBIL ego.
+    IdmMobil,
+}
+
+impl DriverKind {
+    /// Name used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            DriverKind::Planner => "planner",
+            DriverKind::PlannerNoHysteresis => "planner_no_hysteresis",
+            DriverKind::IdmMobil => "idm_mobil",
+        }
+    }
+
+    fn planner_config(self, base: &PlannerConfig) -> Option<PlannerConfig> {
+        let mut c = base.clone();
+        match self {
+            DriverKind::Planner => Some(c),
+            DriverKind::PlannerNoHysteresis => {
+                c.hysteresis.enabled = false;
+                Some(c)
+            }
+            DriverKind::IdmMobil => None,
+        }
+    }
+}
+
+/// Everything a campaign needs.
+#[derive(Debug, Clone)]
+pub struct CampaignSettings {
+    /// Configurations with their (already scaled) trial counts.
+    pub entries: Vec<CampaignEntry>,
+    /// Base seed.
+    pub seed: u64,
+    /// Worker threads (at least 1).
+    pub threads: usize,
+    /// Also run the planner without hysteresis and the IDM + MOBIL ego.
+    pub baselines: bool,
+    /// Episode duration (s).
+    pub duration_s: f64,
+    /// Planner configuration (the "planner" driver uses it as is).
+    pub planner: PlannerConfig,
+    /// Transport to the planner.
+    pub transport: Transport,
+    /// Simulator parameters.
+    pub params: SimParams,
+}
+
+impl CampaignSettings {
+    /// Defaults: the given entries, 30 s episodes, baselines on, default simulator.
+    pub fn new(entries: Vec<CampaignEntry>, seed: u64, threads: usize) -> Self {
+        CampaignSettings {
+            entries,
+            seed,
+            threads,
+            baselines: true,
+            duration_s: CAMPAIGN_DURATION_S,
+            planner: PlannerConfig::default(),
+            transport: Transport::InProcess,
+            params: SimParams::default(),
+        }
+    }
+
+    /// The drivers this campaign runs, in report order.
+    pub fn drivers(&self) -> Vec<DriverKind> {
+        if self.baselines {
+            vec![
+                DriverKind::Planner,
+                DriverKind::PlannerNoHysteresis,
+                DriverKind::IdmMobil,
+            ]
+        } else {
+            vec![DriverKind::Planner]
+        }
+    }
+
+    /// Number of episodes the campaign runs.
+    pub fn episode_count(&self) -> usize {
+        let trials: u64 = self.entries.iter().map(|e| u64::from(e.trials)).sum();
+        trials as usize * self.drivers().len()
+    }
+}
+
+fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Seed of one trial's scenario, from (base seed, configuration id, trial index).
+pub fn trial_seed(base: u64, config_id: u32, trial: u32) -> u64 {
+    splitmix64(splitmix64(splitmix64(base) ^ u64::from(config_id)) ^ u64::from(trial))
+}
+
+/// The episode of one trial (identical for every driver).
+pub fn trial_spec(entry: &CampaignEntry, trial: u32, settings: &CampaignSettings) -> Result<EpisodeSpec> {
+    let seed = trial_seed(settings.seed, entry.id, trial);
+    Ok(EpisodeSpec {
+        scenario: Scenario::random(&entry.traffic, seed)?,
+        params: settings.params,
+        seed: splitmix64(seed ^ 0x5EED),
+        duration_s: settings.duration_s,
+        max_svs: settings.planner.perception.max_svs,
+        record_trajectory: false,
+    })
+}
+
+/// Outcome of one episode of the campaign.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialOutcome {
+    /// Configuration id.
+    pub config_id: u32,
+    /// Trial index.
+    pub trial: u32,
+    /// Driver.
+    pub driver: DriverKind,
+    /// Reproducible metrics.
+    pub metrics: EpisodeMetrics,
+    /// Planner solve times (µs).
+    pub solve_us: Vec<u64>,
+}
+
+/// Aggregate over a set of episodes (one configuration and driver, or overall).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GroupResult {
+    /// Configuration id (`None` for the overall row).
+    pub config_id: Option<u32>,
+    /// Lanes (`None` for the overall row).
+    pub lanes: Option<u8>,
+    /// SV count.
+    pub sv_count: Option<u32>,
+    /// Speed range (m/s).
+    pub speed_range: Option<(f64, f64)>,
+    /// Driver.
+    pub driver: DriverKind,
+    /// Episodes.
+    pub trials: u64,
+    /// Decisions.
+    pub decisions: u64,
+    /// Planner decisions by layer.
+    pub decisions_by_layer: LayerCounts,
+    /// Episodes with an ego collision.
+    pub collisions: u64,
+    /// `collisions / trials`.
+    pub collision_rate: f64,
+    /// Nominal share of planner decisions (`None` for the IDM ego).
+    pub nor: Option<f64>,
+    /// Layer A share.
+    pub gsrr: Option<f64>,
+    /// Layer B share.
+    pub fbr: Option<f64>,
+    /// Solve times (wall clock, not reproducible).
+    pub solve_time: SolveTimeStats,
+    /// Mean ego speed, time weighted (m/s).
+    pub mean_speed_mps: f64,
+    /// Commanded lane changes per simulated minute.
+    pub lane_changes_per_min: f64,
+    /// Beta switches per simulated minute.
+    pub beta_switches_per_min: f64,
+    /// Simulated time (s).
+    pub simulated_s: f64,
+}
+
+/// Everything a campaign produced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CampaignResults {
+    /// Base seed.
+    pub seed: u64,
+    /// Episode duration (s).
+    pub duration_s: f64,
+    /// Configurations run.
+    pub entries: Vec<CampaignEntry>,
+    /// Drivers run, in report order.
+    pub drivers: Vec<DriverKind>,
+    /// Per configuration and driver, configuration-major.
+    pub groups: Vec<GroupResult>,
+    /// Per driver over all configurations.
+    pub overall: Vec<GroupResult>,
+    /// Wall time of the whole campaign (s).
+    pub wall_time_s: f64,
+    /// Worker threads used.
+    pub threads: usize,
+}
+
+impl CampaignResults {
+    /// A copy without any wall-clock quantity (for reproducibility checks).
+    pub fn without_timing(&self) -> CampaignResults {
+        let mut r = self.clone();
+        r.wall_time_s = 0.0;
+        r.threads = 0;
+        for g in r.groups.iter_mut().chain(r.overall.iter_mut()) {
+            g.solve_time = SolveTimeStats {
+                samples: g.solve_time.samples,
+                ..SolveTimeStats::default()
+            };
+        }
+        r
+    }
+
+    /// The group of a configuration and driver.
+    pub fn group(&self, config_id: u32, driver: DriverKind) -> Option<&GroupResult> {
+        self.groups
+            .iter()
+            .find(|g| g.config_id == Some(config_id) && g.driver == driver)
+    }
+
+    /// The overall row of a driver.
+    pub fn overall_for(&self, driver: DriverKind) -> Option<&GroupResult> {
+        self.overall.iter().find(|g| g.driver == driver)
+    }
+}
+
+fn ratio(a: u64, b: u64) -> f64 {
+    if b == 0 {
+        0.0
+    } else {
+        a as f64 / b as f64
+    }
+}
+
+/// Aggregates outcomes (in the given order) into one group.
+pub fn aggregate<'a>(
+    entry: Option<&CampaignEntry>,
+    driver: DriverKind,
+    outcomes: impl Iterator<Item = &'a TrialOutcome>,
+) -> GroupResult {
+    let mut trials = 0u64;
+    let mut decisions = 0u64;
+    let mut layers = LayerCounts::default();
+    let mut collisions = 0u64;
+    let mut simulated = 0.0;
+    let mut speed_time = 0.0;
+    let mut lane_changes = 0u64;
+    let mut beta_switches = 0u64;
+    let mut solve: Vec<u64> = Vec::new();
+    for o in outcomes {
+        let m = &o.metrics;
+        trials += 1;
+        decisions += m.decisions;
+        layers.merge(&m.decisions_by_layer);
+        collisions += u64::from(m.collisions);
+        simulated += m.simulated_s;
+        speed_time += m.mean_speed_mps * m.simulated_s;
+        lane_changes += u64::from(m.lane_changes);
+        beta_switches += u64::from(m.beta_switches);
+        solve.extend_from_slice(&o.solve_us);
+    }
+    let planner = driver != DriverKind::IdmMobil;
+    let total = layers.total();
+    let minutes = simulated / 60.0;
+    let per_min = |n: u64| if minutes > 0.0 { n as f64 / minutes } else { 0.0 };
+    GroupResult {
+        config_id: entry.map(|e| e.id),
+        lanes: entry.map(|e| e.traffic.lanes),
+        sv_count: entry.map(|e| e.traffic.sv_count),
+        speed_range: entry.map(|e| e.traffic.speed_range),
+        driver,
+        trials,
+        decisions,
+        decisions_by_layer: layers,
+        collisions,
+        collision_rate: ratio(collisions, trials),
+        nor: planner.then(|| ratio(layers.nominal, total)),
+        gsrr: planner.then(|| ratio(layers.global_relaxation, total)),
+        fbr: planner.then(|| ratio(layers.fallback, total)),
+        solve_time: SolveTimeStats::from_us(&mut solve),
+        mean_speed_mps: if simulated > 0.0 { speed_time / simulated } else { 0.0 },
+        lane_changes_per_min: per_min(lane_changes),
+        beta_switches_per_min: per_min(beta_switches),
+        simulated_s: clean(simulated),
+    }
+}
+
+struct Item {
+    entry: usize,
+    trial: u32,
+    driver: DriverKind,
+}
+
+struct Worker<'s> {
+    settings: &'s CampaignSettings,
+    links: Vec<(DriverKind, Box<dyn PlannerLink>)>,
+}
+
+impl Worker<'_> {
+    fn run(&mut self, item: &Item) -> Result<TrialOutcome> {
+        let entry = &self.settings.entries[item.entry];
+        let spec = trial_spec(entry, item.trial, self.settings)?;
+        let episode = match item.driver.planner_config(&self.settings.planner) {
+            None => run_episode(&spec, Driver::IdmMobil)?,
+            Some(config) => {
+                let pos = match self.links.iter().position(|(d, _)| *d == item.driver) {
+                    Some(p) => p,
+                    None => {
+                        let link = self.settings.transport.connect(config)?;
+                        self.links.push((item.driver, link));
+                        self.links.len() - 1
+                    }
+                };
+                run_episode(&spec, Driver::Planner(self.links[pos].1.as_mut()))?
+            }
+        };
+        Ok(TrialOutcome {
+            config_id: entry.id,
+            trial: item.trial,
+            driver: item.driver,
+            metrics: episode.metrics(),
+            solve_us: episode.solve_times_us(),
+        })
+    }
+}
+
+/// Runs the campaign. `on_episode` is called once per finished episode (progress display).
+pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync)) -> Result<CampaignResults> {
+    let started = std::time::Instant::now();
+    if settings.entries.is_empty() {
+        return Err(SimClientError::Config("no configuration to run".into()));
+    }
+    let drivers = settings.drivers();
+    let mut items = Vec::with_capacity(settings.episode_count());
+    for (k, e) in settings.entries.iter().enumerate() {
+        for trial in 0..e.trials {
+            for &driver in &drivers {
+                items.push(Item {
+                    entry: k,
+                    trial,
+                    driver,
+                });
+            }
+        }
+    }
+    let threads = settings.threads.clamp(1, items.len().max(1));
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let slots: Mutex<Vec<Option<Result<TrialOutcome>>>> = Mutex::new((0..items.len()).map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                let mut worker = Worker {
+                    settings,
+                    links: Vec::new(),
+                };
+                loop {
+                    if failed.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(item) = items.get(i) else { break };
+                    let outcome = worker.run(item);
+                    if outcome.is_err() {
+                        failed.store(true, Ordering::Relaxed);
+                    }
+                    slots.lock().expect("no worker panics while holding the lock")[i] = Some(outcome);
+                    on_episode();
+                }
+            });
+        }
+    });
+    let slots = slots.into_inner().expect("workers are done");
+    let mut outcomes = Vec::with_capacity(slots.len());
+    for slot in slots {
+        match slot {
+            Some(Ok(o)) => outcomes.push(o),
+            Some(Err(e)) => return Err(e),
+            None => {} // skipped after another item failed; that error is returned above
+        }
+    }
+    if outcomes.len() != items.len() {
+        return Err(SimClientError::Config("campaign aborted".into()));
+    }
+    let mut groups = Vec::new();
+    for e in &settings.entries {
+        for &d in &drivers {
+            groups.push(aggregate(
+                Some(e),
+                d,
+                outcomes.iter().filter(|o| o.config_id == e.id && o.driver == d),
+            ));
+        }
+    }
+    let overall = drivers
+        .iter()
+        .map(|&d| aggregate(None, d, outcomes.iter().filter(|o| o.driver == d)))
+        .collect();
+    Ok(CampaignResults {
+        seed: settings.seed,
+        duration_s: settings.duration_s,
+        entries: settings.entries.clone(),
+        drivers,
+        groups,
+        overall,
+        wall_time_s: started.elapsed().as_secs_f64(),
+        threads,
+    })
+}

@@ -1,0 +1,105 @@
+//! The paper's Case 1 (demonstration) and Case 2 (hysteresis ablation), as pure runners.
+
+use decision::PlannerConfig;
+use serde::{Deserialize, Serialize};
+use traffic::{Scenario, SimParams, SvBehaviour};
+
+use crate::episode::{run_episode, Driver, Episode, EpisodeSpec};
+use crate::error::Result;
+use crate::link::Transport;
+use crate::metrics::EpisodeMetrics;
+
+/// Simulated duration of Cases 1 and 2 (paper Table III), s.
+pub const CASE_DURATION_S: f64 = 40.0;
+
+/// The episode of Case 1: Table II scene, deterministic SVs, 40 s, full trajectory.
+pub fn case1_spec(seed: u64, max_svs: usize) -> EpisodeSpec {
+    EpisodeSpec {
+        scenario: Scenario::case1(),
+        params: SimParams {
+            sv: SvBehaviour::deterministic(),
+            ..SimParams::default()
+        },
+        seed,
+        duration_s: CASE_DURATION_S,
+        max_svs,
+        record_trajectory: true,
+    }
+}
+
+/// One planner run of a case.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseRun {
+    /// The initial scene.
+    pub scenario: Scenario,
+    /// Whether the planner's hysteresis was on.
+    pub hysteresis: bool,
+    /// Everything the episode recorded.
+    pub episode: Episode,
+    /// Its metrics.
+    pub metrics: EpisodeMetrics,
+}
+
+/// Runs the Case 1 scene with the planner configured by `config`.
+pub fn run_case(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<CaseRun> {
+    let spec = case1_spec(seed, config.perception.max_svs);
+    let mut link = transport.connect(config.clone())?;
+    let episode = run_episode(&spec, Driver::Planner(link.as_mut()))?;
+    Ok(CaseRun {
+        scenario: spec.scenario,
+        hysteresis: config.hysteresis.enabled,
+        metrics: episode.metrics(),
+        episode,
+    })
+}
+
+/// Case 1: the scene with `config` as given (default: hysteresis on).
+pub fn run_case1(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<CaseRun> {
+    run_case(config, transport, seed)
+}
+
+/// Both runs of Case 2.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Case2 {
+    /// Hysteresis on.
+    pub with: CaseRun,
+    /// Hysteresis off (no corrective regime), otherwise identical.
+    pub without: CaseRun,
+}
+
+/// The Case 2 summary written to `case2/summary.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Case2Summary {
+    /// Beta switches with hysteresis (paper: 1).
+    pub beta_switches_with: u32,
+    /// Beta switches without hysteresis (paper: 33).
+    pub beta_switches_without: u32,
+    /// Full metrics with hysteresis.
+    pub with_hysteresis: EpisodeMetrics,
+    /// Full metrics without hysteresis.
+    pub without_hysteresis: EpisodeMetrics,
+}
+
+impl Case2 {
+    /// The summary of both runs.
+    pub fn summary(&self) -> Case2Summary {
+        Case2Summary {
+            beta_switches_with: self.with.metrics.beta_switches,
+            beta_switches_without: self.without.metrics.beta_switches,
+            with_hysteresis: self.with.metrics.clone(),
+            without_hysteresis: self.without.metrics.clone(),
+        }
+    }
+}
+
+/// Case 2: the Case 1 scene, same seed, hysteresis forced on and then off.
+pub fn run_case2(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<Case2> {
+    let mut on = config.clone();
+    on.hysteresis.enabled = true;
+    let mut off = config.clone();
+    off.hysteresis.enabled = false;
+    Ok(Case2 {
+        with: run_case(&on, transport, seed)?,
+        without: run_case(&off, transport, seed)?,
+    })
+}

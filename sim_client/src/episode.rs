@@ -1,0 +1,318 @@
+//! One closed-loop episode: the simulator and a driver (the planner through a
+//! [`PlannerLink`], or the simulator's own IDM + MOBIL ego), decision by decision.
+//!
+//! Pure apart from the planner call: no I/O, no clock except the planner's own solve-time
+//! statistic, which is kept apart from everything that must be reproducible.
+
+use decision::{EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Situation};
+use serde::{Deserialize, Serialize};
+use traffic::{EgoCommand, EgoMode, Perception, Scenario, SimParams, World};
+
+use crate::error::{Result, SimClientError};
+use crate::link::PlannerLink;
+use crate::metrics::{clean, EpisodeMetrics};
+
+/// `|a|` below this counts as cruising when the IDM + MOBIL ego's longitudinal mode is
+/// read off its acceleration (same dead band the planner uses for SVs), m/s^2.
+pub const IDM_BETA_DEAD_BAND_MPS2: f64 = 0.3;
+
+/// Who drives the ego.
+pub enum Driver<'a> {
+    /// The planner, reached through a link; the ego follows its commands.
+    Planner(&'a mut dyn PlannerLink),
+    /// The simulator's rule-based ego (IDM + MOBIL); no planner involved.
+    IdmMobil,
+}
+
+impl Driver<'_> {
+    fn ego_mode(&self) -> EgoMode {
+        match self {
+            Driver::Planner(_) => EgoMode::Commanded,
+            Driver::IdmMobil => EgoMode::IdmMobil,
+        }
+    }
+}
+
+/// What to simulate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeSpec {
+    /// Initial scene.
+    pub scenario: Scenario,
+    /// Simulator parameters (T_l, T_h, SV behaviour, sensor range, ...).
+    pub params: SimParams,
+    /// Seed of the simulator's random stream.
+    pub seed: u64,
+    /// Simulated duration (s); the episode also ends at the first ego collision.
+    pub duration_s: f64,
+    /// At most this many SVs (the nearest) are sent to the planner.
+    pub max_svs: usize,
+    /// Record every vehicle's state after every low-level step.
+    pub record_trajectory: bool,
+}
+
+/// One decision instant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DecisionRecord {
+    /// Index of the decision (0, 1, ...).
+    pub index: u64,
+    /// Simulation time (s).
+    pub time_s: f64,
+    /// Layer that answered (`None` for the IDM + MOBIL ego).
+    pub layer: Option<Layer>,
+    /// Commanded target lane after this decision (IDM ego: its target lane).
+    pub target_lane: u8,
+    /// Commanded beta after this decision (IDM ego: sign of its acceleration, dead band
+    /// [`IDM_BETA_DEAD_BAND_MPS2`]).
+    pub beta: i8,
+    /// SVs in corrective mode.
+    pub corrective_svs: usize,
+    /// SVs sent to the planner.
+    pub svs_sent: usize,
+    /// Ego position and speed at the decision instant.
+    pub ego_x_m: f64,
+    /// Ego lateral position (m).
+    pub ego_y_m: f64,
+    /// Ego speed (m/s).
+    pub ego_speed_mps: f64,
+    /// The planned maneuvers over the horizon (empty for the IDM ego).
+    #[serde(skip)]
+    pub plan: Vec<PlanStep>,
+    /// Wall time of the planner's decision (µs); not reproducible, kept out of the CSV.
+    #[serde(skip)]
+    pub solve_us: u64,
+}
+
+/// State of one vehicle after a low-level step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VehicleState {
+    /// Low-level step index (0 = initial state).
+    pub step: u64,
+    /// Simulation time (s).
+    pub time_s: f64,
+    /// Vehicle id (0 = ego).
+    pub id: u32,
+    /// Longitudinal position (m).
+    pub x_m: f64,
+    /// Lateral position (m).
+    pub y_m: f64,
+    /// Speed (m/s).
+    pub v_mps: f64,
+    /// Acceleration (m/s^2).
+    pub a_mps2: f64,
+    /// Nearest lane.
+    pub lane: u8,
+    /// Lane it heads to.
+    pub target_lane: u8,
+    /// Longitudinal mode.
+    pub beta: i8,
+}
+
+/// The first ego contact.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CollisionEvent {
+    /// Time at the end of the step in which it happened (s).
+    pub time_s: f64,
+    /// The other vehicle's id.
+    pub other_id: u32,
+}
+
+/// Everything an episode produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Episode {
+    /// Decision period (s).
+    pub decision_period_s: f64,
+    /// Lane the ego started in.
+    pub initial_lane: u8,
+    /// One record per decision instant.
+    pub decisions: Vec<DecisionRecord>,
+    /// Vehicle states per step (empty unless asked for).
+    pub trajectory: Vec<VehicleState>,
+    /// First ego collision, if any (the episode stops there).
+    pub collision: Option<CollisionEvent>,
+    /// Low-level steps simulated.
+    pub steps: u64,
+    /// Simulated time (s).
+    pub simulated_s: f64,
+    /// Sum of the ego speed after every step (for the mean).
+    pub ego_speed_sum: f64,
+}
+
+impl Episode {
+    /// The episode's metrics.
+    pub fn metrics(&self) -> EpisodeMetrics {
+        EpisodeMetrics::from_episode(self)
+    }
+
+    /// Planner solve times (µs), one per planner decision.
+    pub fn solve_times_us(&self) -> Vec<u64> {
+        self.decisions
+            .iter()
+            .filter(|d| d.layer.is_some())
+            .map(|d| d.solve_us)
+            .collect()
+    }
+}
+
+/// The planner's view of the perceived scene: road, ego with its last commanded maneuver,
+/// the `max_svs` nearest SVs (sorted by id) and the memory of the last decision.
+pub fn situation_from(
+    perception: &Perception,
+    command: EgoCommand,
+    max_svs: usize,
+    memory: PlannerMemory,
+) -> Situation {
+    let ego = &perception.ego;
+    let mut svs: Vec<&traffic::SvObservation> = perception.svs.iter().collect();
+    svs.sort_by(|a, b| {
+        let da = ((a.x - ego.x).abs(), (a.y - ego.y).abs(), a.id);
+        let db = ((b.x - ego.x).abs(), (b.y - ego.y).abs(), b.id);
+        da.0.total_cmp(&db.0).then(da.1.total_cmp(&db.1)).then(da.2.cmp(&db.2))
+    });
+    svs.truncate(max_svs);
+    svs.sort_by_key(|s| s.id);
+    Situation {
+        road: decision::Road {
+            lanes: perception.road.lanes,
+            lane_width_m: perception.road.lane_width,
+            speed_limit_mps: perception.road.speed_limit,
+        },
+        ego: EgoState {
+            x_m: ego.x,
+            y_m: ego.y,
+            v_mps: ego.v,
+            desired_speed_mps: ego.desired_speed,
+            maneuver: Maneuver {
+                lane: command.target_lane,
+                beta: command.beta,
+            },
+        },
+        svs: svs
+            .into_iter()
+            .map(|s| decision::SvObservation {
+                id: s.id,
+                x_m: s.x,
+                y_m: s.y,
+                v_mps: s.v,
+                a_mps2: s.a,
+            })
+            .collect(),
+        memory,
+    }
+}
+
+fn beta_of_acceleration(a: f64) -> i8 {
+    if a > IDM_BETA_DEAD_BAND_MPS2 {
+        1
+    } else if a < -IDM_BETA_DEAD_BAND_MPS2 {
+        -1
+    } else {
+        0
+    }
+}
+
+fn record_states(world: &World, out: &mut Vec<VehicleState>) {
+    let (step, time_s) = (world.step_index(), clean(world.time()));
+    out.extend(world.vehicles().iter().map(|v| VehicleState {
+        step,
+        time_s,
+        id: v.id,
+        x_m: v.x,
+        y_m: v.y,
+        v_mps: v.v,
+        a_mps2: v.a,
+        lane: v.lane,
+        target_lane: v.target_lane,
+        beta: v.beta,
+    }));
+}
+
+/// Runs one episode to its duration or to the first ego collision.
+pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode> {
+    if !(spec.duration_s.is_finite() && spec.duration_s > 0.0) {
+        return Err(SimClientError::Config("episode duration must be positive".into()));
+    }
+    let mut world = World::new(&spec.scenario, &spec.params, driver.ego_mode(), spec.seed)?;
+    let steps_per_decision = spec.params.steps_per_decision();
+    let total_steps = (spec.duration_s / spec.params.dt).round() as u64;
+    let mut episode = Episode {
+        decision_period_s: spec.params.dt * steps_per_decision as f64,
+        initial_lane: spec.scenario.ego.lane,
+        decisions: Vec::with_capacity((total_steps / steps_per_decision + 1) as usize),
+        trajectory: Vec::new(),
+        collision: None,
+        steps: 0,
+        simulated_s: 0.0,
+        ego_speed_sum: 0.0,
+    };
+    if spec.record_trajectory {
+        record_states(&world, &mut episode.trajectory);
+    }
+    let mut memory = PlannerMemory::default();
+    while world.step_index() < total_steps {
+        if world.step_index() % steps_per_decision == 0 {
+            let perception = world.perceive();
+            let index = episode.decisions.len() as u64;
+            let record = match &mut driver {
+                Driver::Planner(link) => {
+                    let situation = situation_from(
+                        &perception,
+                        world.ego_command(),
+                        spec.max_svs,
+                        std::mem::take(&mut memory),
+                    );
+                    let decision = link.decide(&situation)?;
+                    let m = decision.next_maneuver;
+                    world.set_ego_command(EgoCommand {
+                        target_lane: m.lane,
+                        beta: m.beta,
+                    })?;
+                    memory = decision.memory;
+                    DecisionRecord {
+                        index,
+                        time_s: clean(perception.time),
+                        layer: Some(decision.layer),
+                        target_lane: m.lane,
+                        beta: m.beta,
+                        corrective_svs: decision.stats.corrective_svs,
+                        svs_sent: situation.svs.len(),
+                        ego_x_m: perception.ego.x,
+                        ego_y_m: perception.ego.y,
+                        ego_speed_mps: perception.ego.v,
+                        plan: decision.plan,
+                        solve_us: decision.stats.total_us,
+                    }
+                }
+                Driver::IdmMobil => DecisionRecord {
+                    index,
+                    time_s: clean(perception.time),
+                    layer: None,
+                    target_lane: perception.ego.target_lane,
+                    beta: beta_of_acceleration(perception.ego.a),
+                    corrective_svs: 0,
+                    svs_sent: 0,
+                    ego_x_m: perception.ego.x,
+                    ego_y_m: perception.ego.y,
+                    ego_speed_mps: perception.ego.v,
+                    plan: Vec::new(),
+                    solve_us: 0,
+                },
+            };
+            episode.decisions.push(record);
+        }
+        let collisions = world.step();
+        episode.ego_speed_sum += world.ego().v;
+        if spec.record_trajectory {
+            record_states(&world, &mut episode.trajectory);
+        }
+        if let Some(c) = collisions.iter().find(|c| c.involves_ego && c.first_contact) {
+            episode.collision = Some(CollisionEvent {
+                time_s: clean(world.time()),
+                other_id: if c.a == traffic::EGO_ID { c.b } else { c.a },
+            });
+            break;
+        }
+    }
+    episode.steps = world.step_index();
+    episode.simulated_s = world.time();
+    Ok(episode)
+}

@@ -1,0 +1,21 @@
+#![warn(missing_docs)]
+//! Closed-loop simulation client: drives the `traffic` simulator with the HMDP-MPC planner
+//! of the `decision` crate and reproduces the paper's experiments (section IV):
+//! Case 1 (demonstration), Case 2 (hysteresis ablation) and Case 3 (randomized campaign).
+//!
+//! The planner is reached through [`link::PlannerLink`] only. The simulation loop
+//! ([`episode`]), the metrics ([`metrics`]) and the experiment runners ([`cases`],
+//! [`campaign`]) are pure; files are written by [`report`] and [`plot`].
+
+pub mod campaign;
+pub mod cases;
+pub mod episode;
+pub mod error;
+pub mod link;
+pub mod metrics;
+pub mod paper;
+pub mod plot;
+pub mod report;
+
+pub use error::{Result, SimClientError};
+pub use link::{InProcess, LinkError, PlannerLink, Transport};

@@ -1,0 +1,137 @@
+//! The randomized campaign: consistency, thread-count independence, report formatting.
+
+use sim_client::campaign::{paper_entries, parse_entries, run_campaign, scale_trials, CampaignSettings, DriverKind};
+use sim_client::report::{campaign_csv, campaign_markdown, write_campaign};
+
+const TINY: &str = r#"
+[[config]]
+lanes = 2
+sv_count = 8
+speed_range = [25.0, 40.0]
+trials = 2
+
+[[config]]
+lanes = 3
+svs = 5
+speed_range = [10.0, 20.0]
+trials = 2
+
+[[config]]
+id = 42
+lanes = 4
+sv_count = 10
+speed_range = [25.0, 40.0]
+trials = 2
+"#;
+
+#[test]
+fn custom_configs_parse_from_toml_and_json() {
+    let t = parse_entries(TINY, false).unwrap();
+    assert_eq!(t.iter().map(|e| e.id).collect::<Vec<_>>(), vec![1, 2, 42]);
+    assert_eq!(t[1].traffic.sv_count, 5);
+    let j = parse_entries(
+        r#"[{"lanes": 2, "sv_count": 5, "speed_range": [10, 20], "trials": 3}]"#,
+        true,
+    )
+    .unwrap();
+    assert_eq!((j[0].traffic.lanes, j[0].trials), (2, 3));
+    assert!(parse_entries(
+        r#"[{"lanes": 9, "sv_count": 5, "speed_range": [10, 20], "trials": 3}]"#,
+        true
+    )
+    .is_err());
+    assert!(parse_entries("[[config]]\nlanes = 2\n", false).is_err());
+}
+
+#[test]
+fn trial_scaling_keeps_at_least_one_trial() {
+    let e = scale_trials(&paper_entries(), 0.001).unwrap();
+    assert_eq!(e.len(), 18);
+    assert!(e.iter().all(|e| e.trials == 1));
+    let total: u32 = scale_trials(&paper_entries(), 1.0)
+        .unwrap()
+        .iter()
+        .map(|e| e.trials)
+        .sum();
+    assert_eq!(total, 8050);
+    assert!(scale_trials(&paper_entries(), 0.0).is_err());
+}
+
+#[test]
+fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
+    let entries = parse_entries(TINY, false).unwrap();
+    let run = |threads| {
+        let mut s = CampaignSettings::new(entries.clone(), 9, threads);
+        s.duration_s = 12.0;
+        run_campaign(&s, &|| {}).unwrap()
+    };
+    let one = run(1);
+    let two = run(2);
+    assert_eq!(one.without_timing(), two.without_timing());
+    assert_eq!(one.groups.len(), 9);
+    assert_eq!(one.overall.len(), 3);
+    for g in one.groups.iter().chain(&one.overall) {
+        assert_eq!(g.trials, if g.config_id.is_some() { 2 } else { 6 });
+        let layers = g.decisions_by_layer.total();
+        if g.driver == DriverKind::IdmMobil {
+            assert_eq!(layers, 0);
+            assert!(g.nor.is_none());
+        } else {
+            assert_eq!(layers, g.decisions, "layers must sum to decisions");
+            let sum = g.nor.unwrap() + g.gsrr.unwrap() + g.fbr.unwrap();
+            assert!((sum - 1.0).abs() < 1e-9);
+            assert_eq!(g.solve_time.samples, g.decisions);
+        }
+        for r in [
+            g.collision_rate,
+            g.nor.unwrap_or(0.0),
+            g.gsrr.unwrap_or(0.0),
+            g.fbr.unwrap_or(0.0),
+        ] {
+            assert!((0.0..=1.0).contains(&r), "rate {r} out of [0, 1]");
+        }
+        // 12 s = 30 decisions unless the episode ended in a collision.
+        assert!(g.decisions <= 30 * g.trials);
+        assert!(g.decisions >= 30 * (g.trials - g.collisions));
+    }
+    // All three drivers saw the same scenarios: equal trial counts, same configs.
+    for d in [
+        DriverKind::Planner,
+        DriverKind::PlannerNoHysteresis,
+        DriverKind::IdmMobil,
+    ] {
+        assert_eq!(one.overall_for(d).unwrap().trials, 6);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    write_campaign(dir.path(), &one).unwrap();
+    for f in ["results.json", "results.csv", "results.md"] {
+        assert!(dir.path().join("campaign").join(f).exists());
+    }
+    let csv = String::from_utf8(campaign_csv(&one).unwrap()).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 9 + 3);
+}
+
+#[test]
+fn markdown_has_all_paper_rows() {
+    let entries = scale_trials(&paper_entries(), 0.001).unwrap();
+    let mut s = CampaignSettings::new(entries, 1, 2);
+    s.duration_s = 0.8;
+    s.baselines = false;
+    let r = run_campaign(&s, &|| {}).unwrap();
+    let md = campaign_markdown(&r);
+    let table_rows: Vec<&str> = md
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains(" / "))
+        .collect();
+    // 18 configurations + overall in Table I, plus the header of the baseline table.
+    assert!(table_rows.len() >= 19, "{md}");
+    for (id, nor) in [(1, "99.84%"), (6, "93.34%"), (12, "97.96%"), (18, "98.88%")] {
+        assert!(
+            md.lines()
+                .any(|l| l.starts_with(&format!("| {id} |")) && l.contains(nor)),
+            "row {id} lacks the paper's NOR {nor}:\n{md}"
+        );
+    }
+    assert!(md.contains("**Overall**") && md.contains("98.77%") && md.contains("8050"));
+    assert!(md.contains("## Baselines"));
+}

@@ -1,0 +1,133 @@
+//! The closed loop: determinism and the in-process link.
+
+use decision::{Decision, Planner, PlannerConfig, Situation};
+use sim_client::episode::{run_episode, Driver, EpisodeSpec};
+use sim_client::link::{InProcess, LinkError, PlannerLink};
+use sim_client::report::{decisions_csv, json_bytes};
+use traffic::{Scenario, SimParams, TrafficConfig};
+
+fn random_spec(seed: u64, duration_s: f64) -> EpisodeSpec {
+    let traffic = TrafficConfig::new(3, 10, (25.0, 40.0));
+    EpisodeSpec {
+        scenario: Scenario::random(&traffic, seed).unwrap(),
+        params: SimParams::default(),
+        seed,
+        duration_s,
+        max_svs: PlannerConfig::default().perception.max_svs,
+        record_trajectory: false,
+    }
+}
+
+fn outputs(spec: &EpisodeSpec) -> (Vec<u8>, Vec<u8>) {
+    let mut link = InProcess::new(PlannerConfig::default()).unwrap();
+    let e = run_episode(spec, Driver::Planner(&mut link)).unwrap();
+    (decisions_csv(&e.decisions).unwrap(), json_bytes(&e.metrics()).unwrap())
+}
+
+#[test]
+fn same_seed_gives_identical_outputs_and_different_seeds_differ() {
+    let a = outputs(&random_spec(11, 12.0));
+    let b = outputs(&random_spec(11, 12.0));
+    assert!(a.0.len() > 100, "decisions CSV unexpectedly small");
+    assert_eq!(a.0, b.0, "decisions CSV differs between identical runs");
+    assert_eq!(a.1, b.1, "summary JSON differs between identical runs");
+    let c = outputs(&random_spec(12, 12.0));
+    assert_ne!(a.0, c.0, "different seeds gave the same decisions");
+}
+
+#[test]
+fn idm_mobil_driver_is_deterministic_and_records_no_layers() {
+    let spec = random_spec(5, 10.0);
+    let a = run_episode(&spec, Driver::IdmMobil).unwrap();
+    let b = run_episode(&spec, Driver::IdmMobil).unwrap();
+    assert_eq!(a, b);
+    let m = a.metrics();
+    assert_eq!(m.decisions_by_layer.total(), 0);
+    assert!(a.decisions.iter().all(|d| d.layer.is_none()));
+    assert_eq!(m.decisions, if m.collisions == 0 { 25 } else { m.decisions });
+}
+
+#[test]
+fn episode_has_one_decision_per_period_and_trajectory_when_asked() {
+    let mut spec = random_spec(3, 4.0);
+    spec.record_trajectory = true;
+    let mut link = InProcess::new(PlannerConfig::default()).unwrap();
+    let e = run_episode(&spec, Driver::Planner(&mut link)).unwrap();
+    if e.collision.is_none() {
+        assert_eq!(e.decisions.len(), 10);
+        assert_eq!(e.steps, 40);
+    }
+    let vehicles = spec.scenario.svs.len() + 1;
+    assert_eq!(e.trajectory.len() as u64, (e.steps + 1) * vehicles as u64);
+    for (k, d) in e.decisions.iter().enumerate() {
+        assert!((d.time_s - 0.4 * k as f64).abs() < 1e-9);
+        assert!(d.svs_sent <= 16);
+    }
+}
+
+#[test]
+fn at_most_max_svs_nearest_are_sent() {
+    let mut spec = random_spec(21, 2.0);
+    spec.max_svs = 3;
+    struct Check(InProcess, Vec<usize>);
+    impl PlannerLink for Check {
+        fn decide(&mut self, s: &Situation) -> Result<Decision, LinkError> {
+            self.1.push(s.svs.len());
+            assert!(s.svs.windows(2).all(|w| w[0].id < w[1].id));
+            self.0.decide(s)
+        }
+    }
+    let mut link = Check(InProcess::new(PlannerConfig::default()).unwrap(), vec![]);
+    run_episode(&spec, Driver::Planner(&mut link)).unwrap();
+    assert!(!link.1.is_empty());
+    assert!(link.1.iter().all(|&n| n <= 3), "{:?}", link.1);
+    assert!(link.1.contains(&3));
+}
+
+/// Records every situation and the decision it got.
+struct Recorder {
+    inner: InProcess,
+    log: Vec<(Situation, Decision)>,
+}
+
+impl PlannerLink for Recorder {
+    fn decide(&mut self, situation: &Situation) -> Result<Decision, LinkError> {
+        let d = self.inner.decide(situation)?;
+        self.log.push((situation.clone(), d.clone()));
+        Ok(d)
+    }
+}
+
+#[test]
+fn in_process_link_matches_the_planner_called_directly() {
+    let spec = random_spec(7, 10.0);
+    let mut rec = Recorder {
+        inner: InProcess::new(PlannerConfig::default()).unwrap(),
+        log: Vec::new(),
+    };
+    run_episode(&spec, Driver::Planner(&mut rec)).unwrap();
+    assert!(rec.log.len() > 5);
+    let mut direct = Planner::new(PlannerConfig::default()).unwrap();
+    for (k, (situation, via_link)) in rec.log.iter().enumerate() {
+        let d = direct.decide(situation).unwrap();
+        assert_eq!(d.next_maneuver, via_link.next_maneuver, "decision {k}");
+        assert_eq!(d.action, via_link.action, "decision {k}");
+        assert_eq!(d.layer, via_link.layer, "decision {k}");
+        assert_eq!(d.plan, via_link.plan, "decision {k}");
+        assert_eq!(d.memory, via_link.memory, "decision {k}");
+        assert_eq!(d.stats.cost, via_link.stats.cost, "decision {k}");
+        // The memory handed back is the one of the previous decision.
+        if k > 0 {
+            assert_eq!(situation.memory, rec.log[k - 1].1.memory, "memory of decision {k}");
+        }
+    }
+}
+
+#[test]
+fn transport_flag_accepts_only_inproc() {
+    use sim_client::Transport;
+    assert_eq!("inproc".parse::<Transport>().unwrap(), Transport::InProcess);
+    let e = "zenoh".parse::<Transport>().unwrap_err().to_string();
+    assert!(e.contains("not implemented") && e.contains("inproc"), "{e}");
+    assert!("carrier-pigeon".parse::<Transport>().is_err());
+}
