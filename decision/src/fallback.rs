@@ -1,6 +1,7 @@
 //! Layer B: the deterministic fallback (paper eq. fallback_policy). It never fails.
 
 use crate::config::PlannerConfig;
+use crate::idm::idm_distance;
 use crate::lanes::{lanes_at, LaneSet};
 use crate::types::{Beta, Situation, Threat};
 
@@ -17,14 +18,16 @@ pub struct FallbackChoice {
 
 /// Pick the most critical SV by time to collision among those sharing a lane with the ego
 /// (`occupancy0`): a front SV closing in means decelerate, a rear SV closing in means
-/// accelerate. With no closing SV in the ego's lanes, an SV alongside in an adjacent lane is
-/// a lateral risk: hold speed. With nothing at all, hold speed. The lateral command is left
-/// as it is (the target lane does not change), so a lane change under way completes.
+/// accelerate. With none closing, the SV sharing a lane that is deepest inside its IDM
+/// distance is the threat (the fallback runs because some margin is violated, and holding
+/// speed would keep it violated). Failing that, an SV alongside in an adjacent lane is a
+/// lateral risk: hold speed. With nothing at all, hold speed.
 pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> FallbackChoice {
     let ego = &s.ego;
     let length = config.vehicle.length_m;
     let tol = config.vehicle.lane_centre_tolerance_m;
     let mut best: Option<(f64, u8, f64, Threat, u32)> = None; // (ttc, rank, gap, threat, id)
+    let mut too_close: Option<(f64, Threat, u32)> = None; // (IDM deficit, threat, id)
     let mut lateral: Option<u32> = None;
     for sv in &s.svs {
         let dx = sv.x_m - ego.x_m;
@@ -55,6 +58,16 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                 if better {
                     best = Some(key);
                 }
+            } else {
+                let d_idm = if threat == Threat::Front {
+                    idm_distance(&config.idm, ego.v_mps, sv.v_mps)
+                } else {
+                    idm_distance(&config.idm, sv.v_mps, ego.v_mps)
+                };
+                let deficit = d_idm - gap;
+                if deficit > 0.0 && too_close.is_none_or(|t| deficit > t.0 || (deficit == t.0 && sv.id < t.2)) {
+                    too_close = Some((deficit, threat, sv.id));
+                }
             }
         } else {
             let adjacent = lanes
@@ -65,8 +78,11 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             }
         }
     }
-    match (best, lateral) {
-        (Some((ttc, _, _, threat, id)), _) => FallbackChoice {
+    let longitudinal = best
+        .map(|(ttc, _, _, threat, id)| (ttc, threat, id))
+        .or(too_close.map(|(_, threat, id)| (f64::INFINITY, threat, id)));
+    match (longitudinal, lateral) {
+        (Some((ttc, threat, id)), _) => FallbackChoice {
             beta: if threat == Threat::Front { -1 } else { 1 },
             threat,
             sv_id: Some(id),
@@ -85,6 +101,28 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             ttc_s: f64::INFINITY,
         },
     }
+}
+
+/// The fallback's target lane: the current one (a lane change under way completes), unless
+/// the threat occupies that target lane and the ego's body is still in a lane the threat does
+/// not occupy — then the change is aborted back to that lane. Completing a change into the
+/// lane of the SV the fallback is reacting to is how two vehicles merging into the same lane
+/// from both sides collide.
+pub fn lateral_target(config: &PlannerConfig, s: &Situation, choice: &FallbackChoice) -> u8 {
+    let target = s.ego.maneuver.lane;
+    let tol = config.vehicle.lane_centre_tolerance_m;
+    let Some(sv) = choice.sv_id.and_then(|id| s.svs.iter().find(|sv| sv.id == id)) else {
+        return target;
+    };
+    let (Ok(threat), Ok(body)) = (lanes_at(&s.road, sv.y_m, tol), lanes_at(&s.road, s.ego.y_m, tol)) else {
+        return target;
+    };
+    if !threat.contains(target) {
+        return target;
+    }
+    body.iter()
+        .find(|&l| l != target && !threat.contains(l))
+        .unwrap_or(target)
 }
 
 #[cfg(test)]
@@ -142,12 +180,42 @@ mod tests {
     }
 
     #[test]
+    fn a_front_sv_inside_its_idm_distance_brakes_even_when_not_closing() {
+        let c = PlannerConfig::default();
+        // Gap 15 m at equal speed (20 m/s): IDM distance 32 m, no TTC.
+        let s = situation(vec![sv(3, 120.0, 4.0, 20.0)]);
+        let f = choose(&c, &s, LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(3)));
+        assert!(f.ttc_s.is_infinite());
+        // Beyond its IDM distance it is no threat.
+        let s = situation(vec![sv(3, 140.0, 4.0, 20.0)]);
+        assert_eq!(choose(&c, &s, LaneSet::single(2)).threat, Threat::None);
+    }
+
+    #[test]
     fn lateral_alongside_holds_speed() {
         let c = PlannerConfig::default();
         // Alongside in lane 1 (y = 8), nothing closing in lane 2.
         let s = situation(vec![sv(4, 102.0, 8.0, 20.0), sv(5, 160.0, 4.0, 25.0)]);
         let f = choose(&c, &s, LaneSet::single(2));
         assert_eq!((f.beta, f.threat, f.sv_id), (0, Threat::Lateral, Some(4)));
+    }
+
+    #[test]
+    fn a_lane_change_into_the_threat_lane_is_aborted() {
+        let c = PlannerConfig::default();
+        // Ego still in lane 3 (y = 0.05) but heading for lane 2; an SV drifting from lane 1
+        // into lane 2 (y = 4.6) just 2 m ahead: brake and go back to lane 3.
+        let mut s = situation(vec![sv(8, 102.0, 4.6, 19.0)]);
+        s.ego.y_m = 0.05;
+        s.ego.maneuver.lane = 2;
+        let f = choose(&c, &s, LaneSet::single(2).with(3));
+        assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(8)));
+        assert_eq!(lateral_target(&c, &s, &f), 3);
+        // Without the ego's change under way there is nothing to abort.
+        let mut keep = s.clone();
+        keep.ego.y_m = 4.0;
+        assert_eq!(lateral_target(&c, &keep, &f), 2);
     }
 
     #[test]

@@ -184,11 +184,11 @@ pub(crate) fn fallback_decision(
     memory.previous_plan.clear();
     let start = situation.ego.maneuver;
     let next = Maneuver {
-        lane: start.lane,
+        lane: fallback::lateral_target(config, situation, &choice),
         beta: choice.beta,
     };
     let first = Action {
-        lateral: 0,
+        lateral: (i16::from(next.lane) - i16::from(start.lane)).signum() as i8,
         longitudinal: choice.beta - start.beta,
     };
     let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);

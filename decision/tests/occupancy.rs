@@ -1,0 +1,59 @@
+//! Lane occupancy at the planner level: a lane change in progress makes the ego occupy both
+//! lanes, and an SV between lane centres occupies both of its lanes.
+
+use decision::{EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation};
+
+fn situation(ego_y: f64, target: u8, sv_y: f64) -> Situation {
+    Situation {
+        road: Road {
+            lanes: 2,
+            lane_width_m: 4.0,
+            speed_limit_mps: 30.0,
+        },
+        ego: EgoState {
+            x_m: 0.0,
+            y_m: ego_y,
+            v_mps: 20.0,
+            desired_speed_mps: 20.0,
+            maneuver: Maneuver { lane: target, beta: 0 },
+        },
+        // 15 m ahead at the same speed: far inside the IDM distance (~32 m).
+        svs: vec![SvObservation {
+            id: 1,
+            x_m: 20.0,
+            y_m: sv_y,
+            v_mps: 20.0,
+            a_mps2: 0.0,
+        }],
+        memory: PlannerMemory::default(),
+    }
+}
+
+fn decide(s: &Situation) -> decision::Decision {
+    Planner::new(PlannerConfig::default()).unwrap().decide(s).unwrap()
+}
+
+#[test]
+fn an_sv_in_the_other_lane_does_not_constrain_a_lane_keeping_ego() {
+    // Ego in lane 2 (y = 0), SV in lane 1 (y = 4): nothing to do, cruise at the desired speed.
+    let d = decide(&situation(0.0, 2, 4.0));
+    assert_eq!(d.layer, Layer::Nominal);
+    assert_eq!(d.next_maneuver, Maneuver { lane: 2, beta: 0 });
+    assert!(d.stats.cost.unwrap().abs() < 1e-9, "{:?}", d.stats.cost);
+}
+
+#[test]
+fn a_lane_change_under_way_makes_the_other_lane_binding() {
+    // Same SV, but the ego is half-way to lane 1: it occupies both lanes and is far too close.
+    let d = decide(&situation(2.0, 1, 4.0));
+    assert_ne!(d.layer, Layer::Nominal, "{d:?}");
+    assert_eq!(d.next_maneuver.beta, -1, "the ego must back off: {d:?}");
+}
+
+#[test]
+fn an_sv_between_lanes_occupies_both() {
+    // The SV drifts half-way into the ego's lane (y = 2): it shares lane 2 with the ego.
+    let d = decide(&situation(0.0, 2, 2.0));
+    assert_ne!(d.layer, Layer::Nominal, "{d:?}");
+    assert_eq!(d.next_maneuver.beta, -1, "{d:?}");
+}
