@@ -96,6 +96,12 @@ fn print_files(files: &[PathBuf]) {
 }
 
 fn main() -> Result<()> {
+    // Die quietly on a closed stdout (`... | head`), as command-line tools do, instead of
+    // panicking in `println!`. SAFETY: resets a disposition before any thread exists.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL)
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()

@@ -110,22 +110,18 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
         for k in 0..per_class {
             let situation = generator.situation(config, &class);
             // Alternate the order so neither backend always runs on a warm cache.
+            let timed = |planner: &mut Planner, times: &mut Vec<u64>| {
+                let started = Instant::now();
+                let decision = planner.decide(&situation);
+                times.push(started.elapsed().as_micros() as u64);
+                decision
+            };
             let (a, b) = if k % 2 == 0 {
-                let t = Instant::now();
-                let a = milp.decide(&situation)?;
-                t_milp.push(t.elapsed().as_micros() as u64);
-                let t = Instant::now();
-                let b = oracle.decide(&situation)?;
-                t_oracle.push(t.elapsed().as_micros() as u64);
-                (a, b)
+                let a = timed(&mut milp, &mut t_milp)?;
+                (a, timed(&mut oracle, &mut t_oracle)?)
             } else {
-                let t = Instant::now();
-                let b = oracle.decide(&situation)?;
-                t_oracle.push(t.elapsed().as_micros() as u64);
-                let t = Instant::now();
-                let a = milp.decide(&situation)?;
-                t_milp.push(t.elapsed().as_micros() as u64);
-                (a, b)
+                let b = timed(&mut oracle, &mut t_oracle)?;
+                (timed(&mut milp, &mut t_milp)?, b)
             };
             match a.layer {
                 Layer::Nominal => layers.nominal += 1,

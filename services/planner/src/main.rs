@@ -45,6 +45,12 @@ fn load_config(path: Option<&PathBuf>) -> Result<PlannerConfig> {
 }
 
 fn main() -> Result<()> {
+    // Die quietly on a closed stdout (`... | head`), as command-line tools do, instead of
+    // panicking in `println!`. SAFETY: resets a disposition before any thread exists.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL)
+    };
     let cli = Cli::parse();
     match cli.command {
         Command::Bench {
