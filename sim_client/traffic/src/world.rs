@@ -294,7 +294,7 @@ impl World {
     /// Returns every pair of vehicles whose rectangles overlap after the step; the
     /// simulation continues regardless.
     pub fn step(&mut self) -> Vec<Collision> {
-        if self.step_index % self.params.steps_per_decision() == 0 {
+        if self.step_index.is_multiple_of(self.params.steps_per_decision()) {
             self.decide();
         }
         let sets = self.lane_sets();
