@@ -30,9 +30,63 @@ struct Common {
     /// Planner configuration (TOML); defaults when absent.
     #[arg(long, value_name = "FILE")]
     planner_config: Option<PathBuf>,
-    /// How the planner is reached (only `inproc` for now).
+    /// How the planner is reached: `inproc` (same thread) or `zenoh` (a `planner serve`
+    /// process; give `--zenoh-connect` or `--spawn-planner`).
     #[arg(long, default_value = "inproc", value_parser = parse_transport)]
     transport: Transport,
+    /// Zenoh endpoint of the planner service, e.g. tcp/127.0.0.1:7447 (with `--transport zenoh`).
+    #[arg(long, value_name = "ENDPOINT")]
+    zenoh_connect: Option<String>,
+    /// Start `planner serve` (found next to this executable) on a free loopback port for the
+    /// run, and stop it at exit (with `--transport zenoh`).
+    #[arg(long)]
+    spawn_planner: bool,
+}
+
+/// A `planner serve` child process, killed when dropped (also on error or panic).
+struct PlannerChild(std::process::Child);
+
+impl Drop for PlannerChild {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Resolves `--transport zenoh` into an endpoint, starting the planner if asked to.
+fn prepare_transport(common: &mut Common) -> Result<Option<PlannerChild>> {
+    if !matches!(common.transport, Transport::Zenoh { .. }) {
+        if common.zenoh_connect.is_some() || common.spawn_planner {
+            anyhow::bail!("--zenoh-connect and --spawn-planner need --transport zenoh");
+        }
+        return Ok(None);
+    }
+    let (endpoint, child) = match (&common.zenoh_connect, common.spawn_planner) {
+        (Some(_), true) => anyhow::bail!("give either --zenoh-connect or --spawn-planner, not both"),
+        (None, false) => anyhow::bail!("--transport zenoh needs --zenoh-connect ENDPOINT or --spawn-planner"),
+        (Some(e), false) => (e.clone(), None),
+        (None, true) => {
+            let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
+            let endpoint = format!("tcp/127.0.0.1:{port}");
+            let exe = std::env::current_exe().context("locating sim_client's executable")?;
+            let planner = exe.with_file_name(format!("planner{}", std::env::consts::EXE_SUFFIX));
+            let mut cmd = std::process::Command::new(&planner);
+            cmd.args(["serve", "--zenoh-listen", &endpoint]);
+            if let Some(p) = &common.planner_config {
+                cmd.arg("--config").arg(p);
+            }
+            let child = cmd
+                .stdin(std::process::Stdio::null())
+                .spawn()
+                .with_context(|| format!("starting {}", planner.display()))?;
+            (endpoint, Some(PlannerChild(child)))
+        }
+    };
+    // The endpoint lives for the whole run; leaking it keeps `Transport` `Copy`.
+    common.transport = Transport::Zenoh {
+        connect: Box::leak(endpoint.into_boxed_str()),
+    };
+    Ok(child)
 }
 
 #[derive(Subcommand)]
@@ -76,7 +130,11 @@ enum Command {
 }
 
 fn parse_transport(s: &str) -> Result<Transport, String> {
-    s.parse::<Transport>().map_err(|e| e.to_string())
+    match s {
+        // The endpoint comes from --zenoh-connect / --spawn-planner (see prepare_transport).
+        "zenoh" => Ok(Transport::Zenoh { connect: "" }),
+        _ => s.parse::<Transport>().map_err(|e| e.to_string()),
+    }
 }
 
 fn planner_config(path: Option<&Path>) -> Result<PlannerConfig> {
@@ -112,7 +170,8 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     let started = Instant::now();
     match cli.command {
-        Command::Case1 { common, seed } => {
+        Command::Case1 { mut common, seed } => {
+            let _planner = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
             let run = cases::run_case1(&config, common.transport, seed)?;
             let files = report::write_case1(&common.out, &run)?;
@@ -131,7 +190,8 @@ fn main() -> Result<()> {
             );
             print_files(&files);
         }
-        Command::Case2 { common, seed } => {
+        Command::Case2 { mut common, seed } => {
+            let _planner = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
             let case = cases::run_case2(&config, common.transport, seed)?;
             let files = report::write_case2(&common.out, &case)?;
@@ -146,13 +206,14 @@ fn main() -> Result<()> {
             print_files(&files);
         }
         Command::Campaign {
-            common,
+            mut common,
             trials_scale,
             config,
             seed,
             threads,
             baselines,
         } => {
+            let _planner = prepare_transport(&mut common)?;
             let planner = planner_config(common.planner_config.as_deref())?;
             let entries = match &config {
                 Some(p) => campaign::load_entries(p)?,

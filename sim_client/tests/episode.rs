@@ -124,10 +124,13 @@ fn in_process_link_matches_the_planner_called_directly() {
 }
 
 #[test]
-fn transport_flag_accepts_only_inproc() {
+fn transport_flag_names_what_each_transport_needs() {
     use sim_client::Transport;
     assert_eq!("inproc".parse::<Transport>().unwrap(), Transport::InProcess);
+    // Zenoh is reached through an endpoint, which a bare name cannot carry.
     let e = "zenoh".parse::<Transport>().unwrap_err().to_string();
-    assert!(e.contains("not implemented") && e.contains("inproc"), "{e}");
+    assert!(e.contains("--zenoh-connect"), "{e}");
+    let e = "iceoryx2".parse::<Transport>().unwrap_err().to_string();
+    assert!(e.contains("not implemented"), "{e}");
     assert!("carrier-pigeon".parse::<Transport>().is_err());
 }

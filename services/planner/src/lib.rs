@@ -1,3 +1,6 @@
-//! The planner service's library side: for now the solver benchmark.
+//! The planner service's library side: the solver benchmark, the transport-free service core
+//! (worker pool, watchdog, statistics) and its Zenoh front end.
 
 pub mod bench;
+pub mod service;
+pub mod zenoh_front;

@@ -1,0 +1,114 @@
+//! The Zenoh front end of `planner serve`: a queryable on [`protocol::ZENOH_PLAN_KEY`] that
+//! hands every query to the [`Service`] and a publisher of the statistics on
+//! [`protocol::ZENOH_STATS_KEY`].
+//!
+//! The queryable's callback runs on Zenoh's threads and never blocks: it decodes, submits
+//! (a non-blocking `try_send`) and returns; answers come back through an unbounded channel
+//! to a tokio task that sends the replies.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Result};
+use protocol::{ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY, ZENOH_STATS_KEY};
+use tokio::sync::mpsc;
+use zenoh::bytes::Encoding;
+use zenoh::query::Query;
+use zenoh::Config;
+
+use crate::service::{Service, WireFormat};
+
+/// A Zenoh peer configuration with explicit endpoints and no scouting (multicast and gossip
+/// off): sessions find each other only through `listen` / `connect`.
+pub fn peer_config(listen: &[String], connect: &[String]) -> Result<Config> {
+    let json = serde_json::json!({
+        "mode": "peer",
+        "listen": { "endpoints": listen },
+        "connect": { "endpoints": connect },
+        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
+    });
+    Config::from_json5(&json.to_string()).map_err(|e| anyhow!("zenoh configuration: {e}"))
+}
+
+/// The wire format a query asks for: JSON if its encoding is `application/json`, else
+/// bincode.
+pub fn format_of(encoding: Option<&Encoding>) -> WireFormat {
+    match encoding {
+        Some(e) if e.to_string().starts_with(ENCODING_JSON) => WireFormat::Json,
+        _ => WireFormat::Bincode,
+    }
+}
+
+fn encoding_of(format: WireFormat) -> Encoding {
+    match format {
+        WireFormat::Json => Encoding::APPLICATION_JSON,
+        WireFormat::Bincode => Encoding::from(ENCODING_BINCODE),
+    }
+}
+
+/// Serves `service` over Zenoh until `shutdown` resolves. Must run inside a multi-thread
+/// tokio runtime.
+pub async fn serve(
+    service: Arc<Service>,
+    config: Config,
+    shutdown: impl std::future::Future<Output = ()>,
+) -> Result<()> {
+    let session = zenoh::open(config)
+        .await
+        .map_err(|e| anyhow!("opening the zenoh session: {e}"))?;
+    let (reply_tx, mut reply_rx) = mpsc::unbounded_channel::<(Query, Vec<u8>, WireFormat)>();
+    let svc = Arc::clone(&service);
+    let queryable = session
+        .declare_queryable(ZENOH_PLAN_KEY)
+        .complete(true)
+        .callback(move |query: Query| {
+            let arrival = Instant::now();
+            let format = format_of(query.encoding());
+            let bytes: Vec<u8> = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+            let tx = reply_tx.clone();
+            svc.handle_bytes(
+                &bytes,
+                format,
+                arrival,
+                Box::new(move |response| {
+                    let body = format.encode(&response);
+                    let _ = tx.send((query, body, format));
+                }),
+            );
+        })
+        .await
+        .map_err(|e| anyhow!("declaring the queryable on {ZENOH_PLAN_KEY}: {e}"))?;
+    let responder = tokio::spawn(async move {
+        while let Some((query, body, format)) = reply_rx.recv().await {
+            let key = query.key_expr().clone();
+            if let Err(e) = query.reply(key, body).encoding(encoding_of(format)).await {
+                tracing::warn!("reply failed: {e}");
+            }
+        }
+    });
+    let publisher = session
+        .declare_publisher(ZENOH_STATS_KEY)
+        .encoding(Encoding::APPLICATION_JSON)
+        .await
+        .map_err(|e| anyhow!("declaring the publisher on {ZENOH_STATS_KEY}: {e}"))?;
+    let stats = service.stats();
+    let stats_task = tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_secs(1));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tick.tick().await;
+            let doc = serde_json::to_string(&stats.snapshot()).unwrap_or_default();
+            if let Err(e) = publisher.put(doc).await {
+                tracing::warn!("stats publication failed: {e}");
+            }
+        }
+    });
+    tracing::info!(key = ZENOH_PLAN_KEY, "planner serving over zenoh");
+    shutdown.await;
+    tracing::info!("shutting down");
+    stats_task.abort();
+    drop(queryable);
+    responder.abort();
+    let _ = session.close().await;
+    Ok(())
+}
