@@ -67,22 +67,10 @@ impl Planner {
         let prepared = prepare(&self.config, situation);
         let problem = &prepared.problem;
         let mut stats = SolveStats {
-            backend: self.config.solver.backend,
-            total_us: 0,
-            solve_us: 0,
             svs_considered: problem.svs.len(),
             branches: problem.svs.iter().map(|c| c.branches.len()).sum(),
             corrective_svs: prepared.memory.corrective.len(),
-            cost: None,
-            solver_objective: None,
-            rows: 0,
-            columns: 0,
-            binaries: 0,
-            nodes: 0,
-            sequences: 0,
-            warm_start: false,
-            interrupted: false,
-            fallback_threat: None,
+            ..SolveStats::new(self.config.solver.backend)
         };
         let warm = self.warm_candidates(situation);
         let solve_started = Instant::now();
@@ -225,22 +213,10 @@ pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<De
     validate(config, situation)?;
     let prepared = prepare(config, situation);
     let stats = SolveStats {
-        backend: config.solver.backend,
-        total_us: 0,
-        solve_us: 0,
         svs_considered: prepared.problem.svs.len(),
-        branches: 0,
         corrective_svs: prepared.memory.corrective.len(),
-        cost: None,
-        solver_objective: None,
-        rows: 0,
-        columns: 0,
-        binaries: 0,
-        nodes: 0,
-        sequences: 0,
-        warm_start: false,
         interrupted: true,
-        fallback_threat: None,
+        ..SolveStats::new(config.solver.backend)
     };
     let mut d = fallback_decision(config, situation, &prepared.problem, stats, prepared.memory.clone());
     d.stats.total_us = started.elapsed().as_micros() as u64;

@@ -179,6 +179,30 @@ pub struct SolveStats {
     pub fallback_threat: Option<Threat>,
 }
 
+impl SolveStats {
+    /// Statistics of a decision that has not solved anything yet.
+    pub fn new(backend: Backend) -> Self {
+        Self {
+            backend,
+            total_us: 0,
+            solve_us: 0,
+            svs_considered: 0,
+            branches: 0,
+            corrective_svs: 0,
+            cost: None,
+            solver_objective: None,
+            rows: 0,
+            columns: 0,
+            binaries: 0,
+            nodes: 0,
+            sequences: 0,
+            warm_start: false,
+            interrupted: false,
+            fallback_threat: None,
+        }
+    }
+}
+
 /// The answer of one decision.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Decision {

@@ -268,22 +268,10 @@ pub fn decision_from_response(
                 plan: d.plan.iter().map(|&s| s.into()).collect(),
                 layer,
                 stats: decision::SolveStats {
-                    backend: config.solver.backend,
                     total_us: u64::from(response.solve_us),
                     solve_us: u64::from(response.solve_us),
-                    svs_considered: 0,
-                    branches: 0,
                     corrective_svs: memory.corrective.len(),
-                    cost: None,
-                    solver_objective: None,
-                    rows: 0,
-                    columns: 0,
-                    binaries: 0,
-                    nodes: 0,
-                    sequences: 0,
-                    warm_start: false,
-                    interrupted: false,
-                    fallback_threat: None,
+                    ..decision::SolveStats::new(config.solver.backend)
                 },
                 memory,
             })
