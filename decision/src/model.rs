@@ -5,30 +5,9 @@ use crate::config::PlannerConfig;
 use crate::lanes::LaneSet;
 use crate::types::{Action, Beta, Maneuver};
 
-const ONE_STEP: [Action; 5] = [
-    Action {
-        lateral: 0,
-        longitudinal: 0,
-    },
-    Action {
-        lateral: -1,
-        longitudinal: 0,
-    },
-    Action {
-        lateral: 1,
-        longitudinal: 0,
-    },
-    Action {
-        lateral: 0,
-        longitudinal: -1,
-    },
-    Action {
-        lateral: 0,
-        longitudinal: 1,
-    },
-];
-
-const COMBINED: [Action; 9] = [
+/// All actions; the first five change at most one component (the "only one-step
+/// transitions" set), the last four change both.
+const ACTIONS: [Action; 9] = [
     Action {
         lateral: 0,
         longitudinal: 0,
@@ -70,9 +49,9 @@ const COMBINED: [Action; 9] = [
 /// The admissible actions, "keep" first.
 pub fn action_set(combined: bool) -> &'static [Action] {
     if combined {
-        &COMBINED
+        &ACTIONS
     } else {
-        &ONE_STEP
+        &ACTIONS[..5]
     }
 }
 
@@ -264,9 +243,10 @@ mod tests {
                 for beta in -1..=1 {
                     let start = m(lane, beta);
                     let mut brute = 0;
-                    for a in ONE_STEP {
-                        for b in ONE_STEP {
-                            for c in ONE_STEP {
+                    let one_step = action_set(false);
+                    for &a in one_step {
+                        for &b in one_step {
+                            for &c in one_step {
                                 let seq = [a, b, c];
                                 let mut cur = Some(start);
                                 for d in seq {
