@@ -3,9 +3,12 @@
 /// iceoryx2 request-response service: [`PlanRequest`](crate::PlanRequest) in,
 /// [`PlanResponse`](crate::PlanResponse) out.
 pub const ICEORYX2_PLAN_SERVICE: &str = "hmdp/planner/plan";
-/// iceoryx2 event service paired with [`ICEORYX2_PLAN_SERVICE`]: notified when a request
-/// or a response is ready, so that both sides can wait on a WaitSet instead of polling.
-pub const ICEORYX2_PLAN_EVENT_SERVICE: &str = "hmdp/planner/plan/event";
+/// iceoryx2 event service a client notifies after sending a request: it wakes the planner
+/// (iceoryx2 request-response has no blocking receive, events pair with it).
+pub const ICEORYX2_PLAN_REQUEST_EVENT_SERVICE: &str = "hmdp/planner/plan/requests";
+/// iceoryx2 event service the planner notifies after sending a response: it wakes the
+/// waiting clients, which each look whether the answer is theirs.
+pub const ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE: &str = "hmdp/planner/plan/responses";
 
 /// Zenoh key expression of the planner's queryable: the query payload is a
 /// [`PlanRequest`](crate::PlanRequest), the reply a [`PlanResponse`](crate::PlanResponse).

@@ -369,7 +369,8 @@ fn type_names_carry_the_version() {
 #[test]
 fn names_are_stable() {
     assert_eq!(ICEORYX2_PLAN_SERVICE, "hmdp/planner/plan");
-    assert_eq!(ICEORYX2_PLAN_EVENT_SERVICE, "hmdp/planner/plan/event");
+    assert_eq!(ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, "hmdp/planner/plan/requests");
+    assert_eq!(ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE, "hmdp/planner/plan/responses");
     assert_eq!(ZENOH_PLAN_KEY, "hmdp/planner/plan");
     assert_eq!(ZENOH_STATS_KEY, "hmdp/planner/stats");
     assert_eq!(ENCODING_BINCODE, "application/x-hmdp-bincode");

@@ -206,7 +206,8 @@ fn documented_codes_match_the_enums() {
     }
     for name in [
         ICEORYX2_PLAN_SERVICE,
-        ICEORYX2_PLAN_EVENT_SERVICE,
+        ICEORYX2_PLAN_REQUEST_EVENT_SERVICE,
+        ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
         ZENOH_STATS_KEY,
         ENCODING_BINCODE,
     ] {

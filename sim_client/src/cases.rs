@@ -41,7 +41,7 @@ pub struct CaseRun {
 }
 
 /// Runs the Case 1 scene with the planner configured by `config`.
-pub fn run_case(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<CaseRun> {
+pub fn run_case(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<CaseRun> {
     let spec = case1_spec(seed, config.perception.max_svs);
     let mut link = transport.connect(config.clone())?;
     let episode = run_episode(&spec, Driver::Planner(link.as_mut()))?;
@@ -54,7 +54,7 @@ pub fn run_case(config: &PlannerConfig, transport: Transport, seed: u64) -> Resu
 }
 
 /// Case 1: the scene with `config` as given (default: hysteresis on).
-pub fn run_case1(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<CaseRun> {
+pub fn run_case1(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<CaseRun> {
     run_case(config, transport, seed)
 }
 
@@ -93,7 +93,7 @@ impl Case2 {
 }
 
 /// Case 2: the Case 1 scene, same seed, hysteresis forced on and then off.
-pub fn run_case2(config: &PlannerConfig, transport: Transport, seed: u64) -> Result<Case2> {
+pub fn run_case2(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<Case2> {
     let mut on = config.clone();
     on.hysteresis.enabled = true;
     let mut off = config.clone();

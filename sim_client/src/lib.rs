@@ -5,17 +5,19 @@
 //!
 //! The planner is reached through [`link::PlannerLink`] only. The simulation loop
 //! ([`episode`]), the metrics ([`metrics`]) and the experiment runners ([`cases`],
-//! [`campaign`]) are pure; files are written by [`report`] and [`plot`].
+//! [`campaign`]) are pure; files are written by [`report`] and [`plot`]. [`load`] measures a
+//! planner process under load (`sim_client load` / `soak`).
 
 pub mod campaign;
 pub mod cases;
 pub mod episode;
 pub mod error;
 pub mod link;
+pub mod load;
 pub mod metrics;
 pub mod paper;
 pub mod plot;
 pub mod report;
 
 pub use error::{Result, SimClientError};
-pub use link::{InProcess, LinkError, PlannerLink, Transport};
+pub use link::{InProcess, LinkError, LinkOptions, PlanChannel, PlannerLink, RemoteLink, Transport, ZenohTarget};

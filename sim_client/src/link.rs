@@ -1,15 +1,16 @@
 //! The one transport interface the planner is reached through.
 //!
 //! The simulation loop only sees [`PlannerLink`]; implementations: [`InProcess`], which owns
-//! a [`decision::Planner`], and [`ZenohLink`], which asks a `planner serve` process over
-//! Zenoh. iceoryx2 plugs in behind the same trait later, selected through [`Transport`].
+//! a [`decision::Planner`], and [`RemoteLink`], which asks a `planner serve` process through
+//! a [`PlanChannel`]: [`ZenohChannel`] or [`Iceoryx2Channel`]. [`Transport`] picks one.
 
 use std::fmt;
+use std::path::PathBuf;
 use std::str::FromStr;
-
 use std::time::{Duration, Instant};
 
 use decision::{Decision, DecisionError, Planner, PlannerConfig, Situation};
+use protocol::{PlanRequest, PlanResponse};
 use thiserror::Error;
 use zenoh::Wait;
 
@@ -22,6 +23,9 @@ pub enum LinkError {
     /// The transport failed (no answer, broken connection, unsupported transport).
     #[error("transport error: {0}")]
     Transport(String),
+    /// The run is over (a load test's duration ran out); not a failure.
+    #[error("stopped: the run is over")]
+    Stopped,
 }
 
 /// A way to ask a planner for a decision. Object safe: the episode loop holds a
@@ -62,38 +66,43 @@ impl PlannerLink for InProcess {
 }
 
 /// Which transport carries situations to the planner.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub enum Transport {
     /// Direct call in the same thread.
     #[default]
     InProcess,
-    /// A `planner serve` process reached over Zenoh at this endpoint (e.g.
-    /// `tcp/127.0.0.1:7447`). Not parsed from a bare name: it needs an endpoint, which the
-    /// command line gives with `--zenoh-connect` (the `&'static str` keeps the enum `Copy`).
-    Zenoh {
-        /// The Zenoh endpoint of the planner service.
-        connect: &'static str,
+    /// A `planner serve` process over Zenoh.
+    Zenoh(ZenohTarget),
+    /// A `planner serve --iceoryx2` process on this machine, over shared memory.
+    Iceoryx2 {
+        /// Shared-memory file prefix of the planner (`--iceoryx2-prefix`); iceoryx2's default
+        /// when `None`.
+        prefix: Option<String>,
     },
 }
 
-/// Transports that are planned but not implemented yet (`zenoh` is implemented but needs an
-/// endpoint, see [`Transport::Zenoh`]).
-const PLANNED: [&str; 3] = ["iceoryx2", "zenoh", "shm"];
+/// Where a Zenoh planner is: an endpoint, a Zenoh configuration file, or both (the endpoint
+/// then replaces the file's `connect` endpoints).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ZenohTarget {
+    /// E.g. `tcp/127.0.0.1:7447`.
+    pub endpoint: Option<String>,
+    /// A zenohd-style JSON5 file, e.g. `deploy/zenoh/client.json5`.
+    pub config_file: Option<PathBuf>,
+}
 
 impl FromStr for Transport {
     type Err = LinkError;
 
+    /// `inproc`, `iceoryx2` (default prefix) or `zenoh` (with no target yet: the command line
+    /// adds it from `--zenoh-connect` / `--zenoh-config`).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "inproc" => Ok(Transport::InProcess),
-            "zenoh" => Err(LinkError::Transport(
-                "transport `zenoh` needs an endpoint: add `--zenoh-connect ENDPOINT` or `--spawn-planner`".into(),
-            )),
-            other if PLANNED.contains(&other) => Err(LinkError::Transport(format!(
-                "transport `{other}` is not implemented yet; the only available transport is `inproc`"
-            ))),
+            "iceoryx2" => Ok(Transport::Iceoryx2 { prefix: None }),
+            "zenoh" => Ok(Transport::Zenoh(ZenohTarget::default())),
             other => Err(LinkError::Transport(format!(
-                "unknown transport `{other}`; the only available transport is `inproc`"
+                "unknown transport `{other}`; expected `inproc`, `iceoryx2` or `zenoh`"
             ))),
         }
     }
@@ -103,28 +112,44 @@ impl fmt::Display for Transport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Transport::InProcess => f.write_str("inproc"),
-            Transport::Zenoh { .. } => f.write_str("zenoh"),
+            Transport::Zenoh(_) => f.write_str("zenoh"),
+            Transport::Iceoryx2 { .. } => f.write_str("iceoryx2"),
         }
     }
 }
 
 impl Transport {
     /// Opens a link to a planner with `config`. Call it on the thread that will use the link.
-    pub fn connect(self, config: PlannerConfig) -> Result<Box<dyn PlannerLink>, LinkError> {
+    pub fn connect(&self, config: PlannerConfig) -> Result<Box<dyn PlannerLink>, LinkError> {
+        self.connect_with(config, LinkOptions::default())
+    }
+
+    /// [`Transport::connect`] with explicit link settings.
+    pub fn connect_with(&self, config: PlannerConfig, options: LinkOptions) -> Result<Box<dyn PlannerLink>, LinkError> {
         match self {
             Transport::InProcess => Ok(Box::new(InProcess::new(config)?)),
-            Transport::Zenoh { connect } => Ok(Box::new(ZenohLink::connect(
-                connect,
-                config,
-                ZenohLinkOptions::default(),
-            )?)),
+            _ => {
+                let channel = self.open_channel(&options)?;
+                Ok(Box::new(RemoteLink::new(channel, config, options)))
+            }
+        }
+    }
+
+    /// The raw request/answer channel of a remote transport (none for `inproc`).
+    pub fn open_channel(&self, options: &LinkOptions) -> Result<Box<dyn PlanChannel>, LinkError> {
+        match self {
+            Transport::InProcess => Err(LinkError::Transport(
+                "the in-process transport has no request channel".into(),
+            )),
+            Transport::Zenoh(target) => Ok(Box::new(ZenohChannel::connect(target, options)?)),
+            Transport::Iceoryx2 { prefix } => Ok(Box::new(Iceoryx2Channel::connect(prefix.clone(), options)?)),
         }
     }
 }
 
-/// Settings of a [`ZenohLink`].
+/// Settings of a remote link.
 #[derive(Debug, Clone)]
-pub struct ZenohLinkOptions {
+pub struct LinkOptions {
     /// The vehicle's deadline: no answer by then and the vehicle applies
     /// `decision::fallback_only` itself.
     pub deadline: Duration,
@@ -132,13 +157,13 @@ pub struct ZenohLinkOptions {
     /// `deadline - transport_margin`, so that the planner's watchdog answers before the
     /// vehicle gives up.
     pub transport_margin: Duration,
-    /// How long [`ZenohLink::connect`] waits for the planner to answer a probe.
+    /// How long connecting waits for the planner to answer.
     pub ready_timeout: Duration,
     /// Sender id put in the requests.
     pub vehicle_id: u64,
 }
 
-impl Default for ZenohLinkOptions {
+impl Default for LinkOptions {
     fn default() -> Self {
         Self {
             deadline: protocol::DEFAULT_DEADLINE,
@@ -147,6 +172,23 @@ impl Default for ZenohLinkOptions {
             vehicle_id: u64::from(std::process::id()),
         }
     }
+}
+
+/// What came back for one request over a [`PlanChannel`].
+#[derive(Debug, Clone, Default)]
+pub struct Answer {
+    /// The first valid answer that arrived in time.
+    pub response: Option<PlanResponse>,
+    /// Answers beyond the first (0 with a correct planner: one request, one answer).
+    pub extra_responses: usize,
+}
+
+/// A request/answer channel to a planner process: one request at a time.
+pub trait PlanChannel {
+    /// Sends `request` and waits up to `wait` for its answer.
+    fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, LinkError>;
+    /// The transport's name (`zenoh`, `iceoryx2`).
+    fn name(&self) -> &'static str;
 }
 
 /// Zenoh client configuration: connect to `endpoint` only, no scouting.
@@ -159,32 +201,48 @@ pub fn zenoh_client_config(endpoint: &str) -> Result<zenoh::Config, LinkError> {
     zenoh::Config::from_json5(&json.to_string()).map_err(|e| LinkError::Transport(format!("zenoh configuration: {e}")))
 }
 
-/// The planner in a `planner serve` process, asked over Zenoh (bincode payloads, one query
-/// per decision on `hmdp/planner/plan`).
-pub struct ZenohLink {
-    config: PlannerConfig,
-    options: ZenohLinkOptions,
-    session: zenoh::Session,
-    querier: zenoh::query::Querier<'static>,
-    sequence: u64,
-    started: Instant,
-    /// Decisions the vehicle made itself (no answer by the deadline).
-    pub local_fallbacks: u64,
-    /// Answers over Zenoh.
-    pub answered: u64,
+fn zenoh_target_config(target: &ZenohTarget) -> Result<zenoh::Config, LinkError> {
+    let err = |e: String| LinkError::Transport(format!("zenoh configuration: {e}"));
+    match (&target.config_file, &target.endpoint) {
+        (None, None) => Err(LinkError::Transport(
+            "transport `zenoh` needs `--zenoh-connect ENDPOINT`, `--zenoh-config FILE` or `--spawn-planner`".into(),
+        )),
+        (None, Some(endpoint)) => zenoh_client_config(endpoint),
+        (Some(file), endpoint) => {
+            let mut config = zenoh::Config::from_file(file).map_err(|e| err(format!("{}: {e}", file.display())))?;
+            if let Some(endpoint) = endpoint {
+                let json = serde_json::to_string(&[endpoint]).map_err(|e| err(e.to_string()))?;
+                config
+                    .insert_json5("connect/endpoints", &json)
+                    .map_err(|e| err(e.to_string()))?;
+            }
+            Ok(config)
+        }
+    }
 }
 
-impl ZenohLink {
-    /// Opens a client session to `endpoint` and waits (up to `options.ready_timeout`) until
-    /// the planner answers a probe. `config` is used for the vehicle's own fallback.
-    pub fn connect(endpoint: &str, config: PlannerConfig, options: ZenohLinkOptions) -> Result<Self, LinkError> {
+/// Requests as Zenoh queries on `hmdp/planner/plan` (bincode payloads).
+pub struct ZenohChannel {
+    session: zenoh::Session,
+    querier: zenoh::query::Querier<'static>,
+}
+
+impl ZenohChannel {
+    /// Opens a session to `target` and waits (up to `options.ready_timeout`) until a planner
+    /// answers a probe.
+    pub fn connect(target: &ZenohTarget, options: &LinkOptions) -> Result<Self, LinkError> {
         let give_up = Instant::now() + options.ready_timeout;
+        let where_ = target
+            .endpoint
+            .clone()
+            .or_else(|| target.config_file.as_ref().map(|f| f.display().to_string()))
+            .unwrap_or_default();
         let session = loop {
-            match zenoh::open(zenoh_client_config(endpoint)?).wait() {
+            match zenoh::open(zenoh_target_config(target)?).wait() {
                 Ok(s) => break s,
                 Err(e) if Instant::now() >= give_up => {
                     return Err(LinkError::Transport(format!(
-                        "cannot reach the planner at {endpoint}: {e}"
+                        "cannot reach the planner at {where_}: {e}"
                     )))
                 }
                 Err(_) => std::thread::sleep(Duration::from_millis(100)),
@@ -196,49 +254,47 @@ impl ZenohLink {
             .consolidation(zenoh::query::ConsolidationMode::None)
             .wait()
             .map_err(|e| LinkError::Transport(format!("declaring the querier: {e}")))?;
-        let link = Self {
-            config,
-            options,
-            session,
-            querier,
-            sequence: 0,
-            started: Instant::now(),
-            local_fallbacks: 0,
-            answered: 0,
-        };
+        let channel = Self { session, querier };
         // Readiness: an empty query must come back rejected (`malformed`).
         loop {
-            if link.ask(&[], Duration::from_millis(500)).is_some() {
+            if channel.ask(&[], Duration::from_millis(500)).response.is_some() {
                 break;
             }
             if Instant::now() >= give_up {
-                return Err(LinkError::Transport(format!(
-                    "the planner at {endpoint} does not answer"
-                )));
+                return Err(LinkError::Transport(format!("the planner at {where_} does not answer")));
             }
             std::thread::sleep(Duration::from_millis(100));
         }
-        Ok(link)
+        Ok(channel)
     }
 
-    /// One query; the decoded response, or `None` when nothing valid came back in `wait`.
-    fn ask(&self, bytes: &[u8], wait: Duration) -> Option<protocol::PlanResponse> {
+    /// One query: the first decodable answer within `wait`, and how many more came.
+    fn ask(&self, bytes: &[u8], wait: Duration) -> Answer {
         let deadline = Instant::now() + wait;
-        let replies = self
+        let mut answer = Answer::default();
+        let Ok(replies) = self
             .querier
             .get()
             .payload(bytes.to_vec())
             .encoding(zenoh::bytes::Encoding::from(protocol::ENCODING_BINCODE))
             .wait()
-            .ok()?;
+        else {
+            return answer;
+        };
+        // The query ends when every queryable has answered (or at the querier's timeout);
+        // answers after the first are counted, not used.
         while let Ok(Some(reply)) = replies.recv_deadline(deadline) {
-            if let Ok(sample) = reply.result() {
-                if let Ok(response) = protocol::decode_bincode::<protocol::PlanResponse>(&sample.payload().to_bytes()) {
-                    return Some(response);
-                }
+            let Ok(sample) = reply.result() else { continue };
+            match protocol::decode_bincode::<PlanResponse>(&sample.payload().to_bytes()) {
+                Ok(response) if answer.response.is_none() => answer.response = Some(response),
+                Ok(_) => answer.extra_responses += 1,
+                Err(e) => tracing::warn!("undecodable answer: {e}"),
+            }
+            if answer.response.is_some() && deadline <= Instant::now() {
+                break;
             }
         }
-        None
+        answer
     }
 
     /// The Zenoh session (to declare more entities on it).
@@ -247,11 +303,55 @@ impl ZenohLink {
     }
 }
 
+impl PlanChannel for ZenohChannel {
+    fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, LinkError> {
+        Ok(self.ask(&protocol::encode_bincode(&request), wait))
+    }
+
+    fn name(&self) -> &'static str {
+        "zenoh"
+    }
+}
+
+/// Requests over iceoryx2 shared memory (zero copy: the request is written in place).
+pub struct Iceoryx2Channel {
+    client: iceoryx2_transport::Client,
+}
+
+impl Iceoryx2Channel {
+    /// Opens the planner's iceoryx2 services under `prefix`, waiting up to
+    /// `options.ready_timeout` for a planner to create them.
+    pub fn connect(prefix: Option<String>, options: &LinkOptions) -> Result<Self, LinkError> {
+        let client_options = iceoryx2_transport::ClientOptions {
+            prefix,
+            ready_timeout: options.ready_timeout,
+            node_name: format!("hmdp-vehicle-{}", options.vehicle_id),
+        };
+        let client =
+            iceoryx2_transport::Client::connect(&client_options).map_err(|e| LinkError::Transport(e.to_string()))?;
+        Ok(Self { client })
+    }
+}
+
+impl PlanChannel for Iceoryx2Channel {
+    fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, LinkError> {
+        let exchange = self
+            .client
+            .request(request, wait)
+            .map_err(|e| LinkError::Transport(e.to_string()))?;
+        Ok(Answer {
+            response: exchange.response,
+            extra_responses: exchange.extra_responses,
+        })
+    }
+
+    fn name(&self) -> &'static str {
+        "iceoryx2"
+    }
+}
+
 /// The decision a response carries (a watchdog answer becomes a `Fallback` decision).
-pub fn decision_from_response(
-    config: &PlannerConfig,
-    response: &protocol::PlanResponse,
-) -> Result<Decision, LinkError> {
+pub fn decision_from_response(config: &PlannerConfig, response: &PlanResponse) -> Result<Decision, LinkError> {
     use protocol::OutcomeRef;
     match response.outcome.get() {
         Ok(OutcomeRef::Decided(d)) => {
@@ -287,42 +387,90 @@ pub fn decision_from_response(
     }
 }
 
-impl PlannerLink for ZenohLink {
+/// Counts of a remote link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkCounts {
+    /// Answers from the planner.
+    pub answered: u64,
+    /// Decisions the vehicle made itself (no answer by the deadline).
+    pub local_fallbacks: u64,
+    /// Answers beyond the first for one request (0 with a correct planner).
+    pub duplicates: u64,
+}
+
+/// The planner in another process, asked through a [`PlanChannel`]. Numbers the requests,
+/// asks for `deadline - transport_margin`, and falls back locally when no answer comes.
+pub struct RemoteLink {
+    channel: Box<dyn PlanChannel>,
+    config: PlannerConfig,
+    options: LinkOptions,
+    sequence: u64,
+    started: Instant,
+    counts: LinkCounts,
+}
+
+impl RemoteLink {
+    /// A link over `channel`; `config` is used for the vehicle's own fallback.
+    pub fn new(channel: Box<dyn PlanChannel>, config: PlannerConfig, options: LinkOptions) -> Self {
+        Self {
+            channel,
+            config,
+            options,
+            sequence: 0,
+            started: Instant::now(),
+            counts: LinkCounts::default(),
+        }
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> LinkCounts {
+        self.counts
+    }
+}
+
+impl PlannerLink for RemoteLink {
     fn decide(&mut self, situation: &Situation) -> Result<Decision, LinkError> {
         self.sequence += 1;
         let asked = Instant::now();
         let timestamp_ns = u64::try_from(self.started.elapsed().as_nanos()).unwrap_or(u64::MAX);
-        let mut request =
-            protocol::PlanRequest::from_situation(self.options.vehicle_id, self.sequence, timestamp_ns, situation)
-                .map_err(|e| LinkError::Transport(format!("encoding the request: {e}")))?;
+        let mut request = PlanRequest::from_situation(self.options.vehicle_id, self.sequence, timestamp_ns, situation)
+            .map_err(|e| LinkError::Transport(format!("encoding the request: {e}")))?;
         let server_deadline = self.options.deadline.saturating_sub(self.options.transport_margin);
         request.deadline_us = u32::try_from(server_deadline.as_micros()).unwrap_or(u32::MAX).max(1);
-        let bytes = protocol::encode_bincode(&request);
+        let (vehicle_id, sequence) = (request.vehicle_id, request.sequence);
         let wait = self.options.deadline.saturating_sub(asked.elapsed());
-        match self.ask(&bytes, wait) {
-            Some(response) if response.vehicle_id == request.vehicle_id && response.sequence == request.sequence => {
-                self.answered += 1;
+        let answer = match self.channel.exchange(request, wait) {
+            Ok(answer) => answer,
+            Err(e) => {
+                tracing::warn!(sequence, "{} request failed: {e}", self.channel.name());
+                Answer::default()
+            }
+        };
+        self.counts.duplicates += answer.extra_responses as u64;
+        match answer.response {
+            Some(response) if response.vehicle_id == vehicle_id && response.sequence == sequence => {
+                self.counts.answered += 1;
                 decision_from_response(&self.config, &response)
             }
             _ => {
-                self.local_fallbacks += 1;
-                tracing::warn!(
-                    sequence = self.sequence,
-                    "no answer from the planner by the deadline: local fallback"
-                );
+                self.counts.local_fallbacks += 1;
+                tracing::warn!(sequence, "no answer from the planner by the deadline: local fallback");
                 Ok(decision::fallback_only(&self.config, situation)?)
             }
         }
     }
 }
 
-impl Drop for ZenohLink {
+impl Drop for RemoteLink {
     fn drop(&mut self) {
-        if self.local_fallbacks > 0 {
+        let c = self.counts;
+        if c.local_fallbacks > 0 || c.duplicates > 0 {
             tracing::warn!(
-                local_fallbacks = self.local_fallbacks,
-                answered = self.answered,
-                "zenoh link: decisions made by the vehicle's own fallback"
+                transport = self.channel.name(),
+                local_fallbacks = c.local_fallbacks,
+                duplicates = c.duplicates,
+                answered = c.answered,
+                "remote link: decisions made by the vehicle's own fallback or duplicated answers"
             );
         }
     }

@@ -9,7 +9,8 @@ use clap::{Args, Parser, Subcommand};
 use decision::PlannerConfig;
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_client::campaign::{self, CampaignSettings};
-use sim_client::{cases, report, Transport};
+use sim_client::load::{self, LiveCounters, LoadReport, LoadSettings, ProcessMonitor};
+use sim_client::{cases, report, Transport, ZenohTarget};
 
 #[derive(Parser)]
 #[command(
@@ -27,70 +28,217 @@ struct Common {
     /// Output directory.
     #[arg(long, default_value = "out")]
     out: PathBuf,
-    /// Planner configuration (TOML); defaults when absent.
+    /// Planner configuration (TOML); defaults when absent. With a remote transport it is
+    /// used for the vehicle's own fallback, and passed to a planner started with
+    /// `--spawn-planner`.
     #[arg(long, value_name = "FILE")]
     planner_config: Option<PathBuf>,
-    /// How the planner is reached: `inproc` (same thread) or `zenoh` (a `planner serve`
-    /// process; give `--zenoh-connect` or `--spawn-planner`).
+    /// How the planner is reached: `inproc` (same thread), `iceoryx2` (a `planner serve
+    /// --iceoryx2` process on this machine) or `zenoh` (a `planner serve` process reached
+    /// with `--zenoh-connect` or `--zenoh-config`).
     #[arg(long, default_value = "inproc", value_parser = parse_transport)]
     transport: Transport,
     /// Zenoh endpoint of the planner service, e.g. tcp/127.0.0.1:7447 (with `--transport zenoh`).
     #[arg(long, value_name = "ENDPOINT")]
     zenoh_connect: Option<String>,
-    /// Start `planner serve` (found next to this executable) on a free loopback port for the
-    /// run, and stop it at exit (with `--transport zenoh`).
+    /// Zenoh configuration file (JSON5), e.g. deploy/zenoh/client.json5 (with `--transport zenoh`).
+    #[arg(long, value_name = "FILE")]
+    zenoh_config: Option<PathBuf>,
+    /// iceoryx2 shared-memory prefix of the planner (with `--transport iceoryx2`).
+    #[arg(long, value_name = "PREFIX")]
+    iceoryx2_prefix: Option<String>,
+    /// Start `planner serve` (found next to this executable) for the run and stop it at exit
+    /// (with `--transport zenoh` on a free loopback port, or `--transport iceoryx2` under a
+    /// prefix of its own).
     #[arg(long)]
     spawn_planner: bool,
 }
 
-/// A `planner serve` child process, killed when dropped (also on error or panic).
+/// A `planner serve` child process, stopped when dropped (also on error or panic).
 struct PlannerChild(std::process::Child);
 
 impl Drop for PlannerChild {
     fn drop(&mut self) {
+        // SIGTERM first, so that it removes its shared memory; SIGKILL if it does not stop.
+        #[cfg(unix)]
+        if let Ok(pid) = i32::try_from(self.0.id()) {
+            // SAFETY: signals our own child, which has not been reaped yet.
+            unsafe { libc::kill(pid, libc::SIGTERM) };
+            let until = Instant::now() + std::time::Duration::from_secs(5);
+            while Instant::now() < until {
+                if let Ok(Some(_)) = self.0.try_wait() {
+                    return;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
 }
 
-/// Resolves `--transport zenoh` into an endpoint, starting the planner if asked to.
-fn prepare_transport(common: &mut Common) -> Result<Option<PlannerChild>> {
-    if !matches!(common.transport, Transport::Zenoh { .. }) {
-        if common.zenoh_connect.is_some() || common.spawn_planner {
-            anyhow::bail!("--zenoh-connect and --spawn-planner need --transport zenoh");
-        }
-        return Ok(None);
+fn spawn_planner_with(common: &Common, transport_args: &[String], workers: Option<usize>) -> Result<PlannerChild> {
+    let exe = std::env::current_exe().context("locating sim_client's executable")?;
+    let planner = exe.with_file_name(format!("planner{}", std::env::consts::EXE_SUFFIX));
+    let mut cmd = std::process::Command::new(&planner);
+    cmd.arg("serve").args(transport_args);
+    if let Some(w) = workers {
+        cmd.arg("--workers").arg(w.to_string());
     }
-    let (endpoint, child) = match (&common.zenoh_connect, common.spawn_planner) {
-        (Some(_), true) => anyhow::bail!("give either --zenoh-connect or --spawn-planner, not both"),
-        (None, false) => anyhow::bail!("--transport zenoh needs --zenoh-connect ENDPOINT or --spawn-planner"),
-        (Some(e), false) => (e.clone(), None),
-        (None, true) => {
-            let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
-            let endpoint = format!("tcp/127.0.0.1:{port}");
-            let exe = std::env::current_exe().context("locating sim_client's executable")?;
-            let planner = exe.with_file_name(format!("planner{}", std::env::consts::EXE_SUFFIX));
-            let mut cmd = std::process::Command::new(&planner);
-            cmd.args(["serve", "--zenoh-listen", &endpoint]);
-            if let Some(p) = &common.planner_config {
-                cmd.arg("--config").arg(p);
+    if let Some(p) = &common.planner_config {
+        cmd.arg("--config").arg(p);
+    }
+    let child = cmd
+        .stdin(std::process::Stdio::null())
+        .spawn()
+        .with_context(|| format!("starting {}", planner.display()))?;
+    Ok(PlannerChild(child))
+}
+
+/// Completes the transport from the command line, starting the planner if asked to.
+fn prepare_transport(common: &mut Common) -> Result<Option<PlannerChild>> {
+    prepare_transport_with(common, None)
+}
+
+/// [`prepare_transport`], giving a spawned planner `workers` worker threads.
+fn prepare_transport_with(common: &mut Common, workers: Option<usize>) -> Result<Option<PlannerChild>> {
+    let zenoh_flags = common.zenoh_connect.is_some() || common.zenoh_config.is_some();
+    match common.transport.clone() {
+        Transport::InProcess => {
+            if zenoh_flags || common.iceoryx2_prefix.is_some() || common.spawn_planner {
+                anyhow::bail!("--zenoh-*, --iceoryx2-prefix and --spawn-planner need --transport zenoh or iceoryx2");
             }
-            let child = cmd
-                .stdin(std::process::Stdio::null())
-                .spawn()
-                .with_context(|| format!("starting {}", planner.display()))?;
-            (endpoint, Some(PlannerChild(child)))
+            Ok(None)
         }
-    };
-    // The endpoint lives for the whole run; leaking it keeps `Transport` `Copy`.
-    common.transport = Transport::Zenoh {
-        connect: Box::leak(endpoint.into_boxed_str()),
-    };
-    Ok(child)
+        Transport::Zenoh(_) => {
+            if common.iceoryx2_prefix.is_some() {
+                anyhow::bail!("--iceoryx2-prefix needs --transport iceoryx2");
+            }
+            let mut target = ZenohTarget {
+                endpoint: common.zenoh_connect.clone(),
+                config_file: common.zenoh_config.clone(),
+            };
+            let child = match (zenoh_flags, common.spawn_planner) {
+                (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),
+                (false, false) => {
+                    anyhow::bail!(
+                        "--transport zenoh needs --zenoh-connect ENDPOINT, --zenoh-config FILE or --spawn-planner"
+                    )
+                }
+                (true, false) => None,
+                (false, true) => {
+                    let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
+                    let endpoint = format!("tcp/127.0.0.1:{port}");
+                    let child = spawn_planner_with(common, &["--zenoh-listen".into(), endpoint.clone()], workers)?;
+                    target.endpoint = Some(endpoint);
+                    Some(child)
+                }
+            };
+            common.transport = Transport::Zenoh(target);
+            Ok(child)
+        }
+        Transport::Iceoryx2 { .. } => {
+            if zenoh_flags {
+                anyhow::bail!("--zenoh-connect / --zenoh-config need --transport zenoh");
+            }
+            let mut prefix = common.iceoryx2_prefix.clone();
+            let child = if common.spawn_planner {
+                // A prefix of its own, so that it cannot meet another planner on this machine.
+                let p = prefix.get_or_insert_with(|| format!("hmdp{}_", std::process::id()));
+                Some(spawn_planner_with(
+                    common,
+                    &["--iceoryx2".into(), "--iceoryx2-prefix".into(), p.clone()],
+                    workers,
+                )?)
+            } else {
+                None
+            };
+            common.transport = Transport::Iceoryx2 { prefix };
+            Ok(child)
+        }
+    }
+}
+
+/// Settings shared by `load` and `soak`.
+#[derive(Args)]
+struct LoadArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Vehicle clients.
+    #[arg(long, default_value_t = 8)]
+    clients: usize,
+    /// Requests per second per vehicle.
+    #[arg(long, default_value_t = 2.5)]
+    rate: f64,
+    /// Run length, e.g. `60s`, `10m`, `1h`.
+    #[arg(long, value_parser = humantime::parse_duration)]
+    duration: Option<std::time::Duration>,
+    /// RSS growth is measured against the first sample after this (default: a quarter of the
+    /// run, at most 10 s for `load`, 60 s for `soak`).
+    #[arg(long, value_parser = humantime::parse_duration)]
+    warmup: Option<std::time::Duration>,
+    /// The vehicles' deadline, ms.
+    #[arg(long, default_value_t = 400)]
+    deadline_ms: u64,
+    /// Run the vehicles in this many processes (each gets its share of `--clients`) instead
+    /// of threads of this process.
+    #[arg(long, default_value_t = 0)]
+    processes: usize,
+    /// The planner's pid, to sample its CPU and RSS (known by itself with `--spawn-planner`).
+    #[arg(long)]
+    planner_pid: Option<u32>,
+    /// Worker threads of a planner started with `--spawn-planner`.
+    #[arg(long)]
+    planner_workers: Option<usize>,
+    /// Seed of the scenarios.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Also write the report as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Draw the latency distribution and the time series into `--out`.
+    #[arg(long)]
+    plot: bool,
+    /// Print a progress line this often.
+    #[arg(long, value_parser = humantime::parse_duration, default_value = "10s")]
+    report_every: std::time::Duration,
 }
 
 #[derive(Subcommand)]
 enum Command {
+    /// Latency under load: vehicle clients at a fixed rate against a planner process, each
+    /// driving its own simulation; HDR percentiles of round trip, queueing and solve time,
+    /// answers by layer, deadline misses, lost and duplicated answers, planner CPU and RSS.
+    Load(LoadArgs),
+    /// `load` for a long time (default 1 h), failing (exit 1) unless every request got
+    /// exactly one answer by its deadline and the planner's RSS stayed flat.
+    Soak {
+        #[command(flatten)]
+        load: LoadArgs,
+        /// Largest allowed planner RSS growth after the warm-up, %.
+        #[arg(long, default_value_t = 5.0)]
+        max_rss_growth: f64,
+    },
+    /// One process's share of `load --processes` (writes its measurements as JSON).
+    #[command(hide = true)]
+    LoadWorker {
+        #[command(flatten)]
+        common: Common,
+        #[arg(long)]
+        clients: usize,
+        #[arg(long)]
+        rate: f64,
+        #[arg(long, value_parser = humantime::parse_duration)]
+        duration: std::time::Duration,
+        #[arg(long)]
+        deadline_ms: u64,
+        #[arg(long)]
+        seed: u64,
+        #[arg(long)]
+        vehicle_id_base: u64,
+        #[arg(long)]
+        part_out: PathBuf,
+    },
     /// Case 1: the Table II scene for 40 s with the planner.
     Case1 {
         #[command(flatten)]
@@ -129,12 +277,178 @@ enum Command {
     },
 }
 
-fn parse_transport(s: &str) -> Result<Transport, String> {
-    match s {
-        // The endpoint comes from --zenoh-connect / --spawn-planner (see prepare_transport).
-        "zenoh" => Ok(Transport::Zenoh { connect: "" }),
-        _ => s.parse::<Transport>().map_err(|e| e.to_string()),
+/// The command-line flags that reach `transport` (for `load --processes` children).
+fn transport_flags(transport: &Transport) -> Vec<String> {
+    let mut flags = vec!["--transport".to_string(), transport.to_string()];
+    match transport {
+        Transport::InProcess => {}
+        Transport::Iceoryx2 { prefix } => {
+            if let Some(p) = prefix {
+                flags.extend(["--iceoryx2-prefix".into(), p.clone()]);
+            }
+        }
+        Transport::Zenoh(target) => {
+            if let Some(e) = &target.endpoint {
+                flags.extend(["--zenoh-connect".into(), e.clone()]);
+            }
+            if let Some(f) = &target.config_file {
+                flags.extend(["--zenoh-config".into(), f.display().to_string()]);
+            }
+        }
     }
+    flags
+}
+
+/// Runs `load` / `soak`: the report, printed and written.
+fn run_load_command(mut args: LoadArgs, default_duration: std::time::Duration, soak: bool) -> Result<LoadReport> {
+    let planner = prepare_transport_with(&mut args.common, args.planner_workers)?;
+    let config = planner_config(args.common.planner_config.as_deref())?;
+    let duration = args.duration.unwrap_or(default_duration);
+    let warmup_cap = std::time::Duration::from_secs(if soak { 60 } else { 10 });
+    let mut settings = LoadSettings::new(args.common.transport.clone(), args.clients, args.rate, duration);
+    settings.warmup = args.warmup.unwrap_or((duration / 4).min(warmup_cap));
+    settings.deadline = std::time::Duration::from_millis(args.deadline_ms);
+    settings.seed = args.seed;
+    settings.planner = config;
+    settings.planner_pid = args.planner_pid.or(planner.as_ref().map(|p| p.0.id()));
+    let live = std::sync::Arc::new(LiveCounters::default());
+    settings.live = Some(std::sync::Arc::clone(&live));
+    let monitor = settings
+        .planner_pid
+        .map(|pid| ProcessMonitor::start(pid, settings.sample_period));
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let reporter = {
+        let (done, live, every) = (
+            std::sync::Arc::clone(&done),
+            std::sync::Arc::clone(&live),
+            args.report_every,
+        );
+        let started = Instant::now();
+        std::thread::spawn(move || {
+            let mut next = started + every;
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(std::time::Duration::from_millis(100));
+                if Instant::now() >= next {
+                    next += every;
+                    let [sent, in_time, late, lost, dup] = live.get();
+                    eprintln!(
+                        "[{:>7.1} s] sent {sent}, decided in time {in_time}, late {late}, lost {lost}, duplicated {dup}",
+                        started.elapsed().as_secs_f64()
+                    );
+                }
+            }
+        })
+    };
+    let parts = if args.processes == 0 {
+        vec![load::run_part(&settings, Instant::now())?]
+    } else {
+        run_worker_processes(&args, &settings)?
+    };
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = reporter.join();
+    let report = LoadReport::merge(&settings, &parts, monitor.map(|m| m.finish(settings.warmup)));
+    drop(planner);
+    print_load_report(&report);
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("  wrote {}", path.display());
+    }
+    if args.plot {
+        let dir = args.common.out.join(if soak { "soak" } else { "load" });
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let files = [dir.join("latency.svg"), dir.join("timeline.svg")];
+        sim_client::plot::latency_plot(&files[0], &report)?;
+        sim_client::plot::load_timeline_plot(&files[1], &report)?;
+        print_files(&files);
+    }
+    Ok(report)
+}
+
+/// `load --processes N`: N `load-worker` children share the vehicles; their parts are merged.
+fn run_worker_processes(args: &LoadArgs, settings: &LoadSettings) -> Result<Vec<load::LoadPart>> {
+    let exe = std::env::current_exe().context("locating sim_client's executable")?;
+    let dir = std::env::temp_dir().join(format!("hmdp-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let n = args.processes.min(args.clients).max(1);
+    let mut children = Vec::new();
+    let mut base = settings.vehicle_id_base;
+    for i in 0..n {
+        let clients = args.clients / n + usize::from(i < args.clients % n);
+        let out = dir.join(format!("part-{i}.json"));
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("load-worker")
+            .args(transport_flags(&settings.transport))
+            .args([
+                "--clients",
+                &clients.to_string(),
+                "--rate",
+                &settings.rate_hz.to_string(),
+            ])
+            .args(["--duration", &format!("{}ms", settings.duration.as_millis())])
+            .args(["--deadline-ms", &settings.deadline.as_millis().to_string()])
+            .args([
+                "--seed",
+                &settings.seed.to_string(),
+                "--vehicle-id-base",
+                &base.to_string(),
+            ])
+            .arg("--part-out")
+            .arg(&out);
+        if let Some(p) = &args.common.planner_config {
+            cmd.arg("--planner-config").arg(p);
+        }
+        children.push((cmd.spawn().context("starting a load worker")?, out));
+        base += clients as u64;
+    }
+    let mut parts = Vec::new();
+    for (mut child, out) in children {
+        let status = child.wait()?;
+        anyhow::ensure!(status.success(), "a load worker failed ({status})");
+        let text = std::fs::read_to_string(&out).with_context(|| format!("reading {}", out.display()))?;
+        parts.push(serde_json::from_str(&text)?);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(parts)
+}
+
+fn print_load_report(r: &LoadReport) {
+    let c = &r.counts;
+    println!(
+        "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}; {:.1} decisions/s in time",
+        r.transport, r.clients, r.rate_hz, r.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, r.throughput_per_s
+    );
+    let l = &r.by_layer;
+    println!(
+        "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, rejected {}",
+        l.nominal, l.global_relaxation, l.fallback, l.watchdog_fallback, l.rejected
+    );
+    println!(
+        "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "us", "p50", "p90", "p99", "p99.9", "max"
+    );
+    for (name, p) in [
+        ("round trip", &r.round_trip),
+        ("queueing", &r.queue),
+        ("solve", &r.solve),
+        ("transport share", &r.transport_overhead),
+    ] {
+        println!(
+            "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            name, p.p50_us, p.p90_us, p.p99_us, p.p999_us, p.max_us
+        );
+    }
+    if let Some(p) = &r.planner {
+        println!(
+            "  planner pid {}: CPU mean {:.1} % of a core, RSS after warm-up {} KiB, max {} KiB (growth {:.2} %)",
+            p.pid, p.cpu_mean_percent, p.rss_after_warmup_kib, p.rss_max_after_warmup_kib, p.rss_growth_percent
+        );
+    }
+}
+
+fn parse_transport(s: &str) -> Result<Transport, String> {
+    // A Zenoh target comes from --zenoh-connect / --zenoh-config (see prepare_transport).
+    s.parse::<Transport>().map_err(|e| e.to_string())
 }
 
 fn planner_config(path: Option<&Path>) -> Result<PlannerConfig> {
@@ -169,11 +483,48 @@ fn main() -> Result<()> {
         .init();
     let cli = Cli::parse();
     let started = Instant::now();
+    let mut exit_code = None;
     match cli.command {
+        Command::Load(args) => {
+            run_load_command(args, std::time::Duration::from_secs(30), false)?;
+        }
+        Command::Soak { load, max_rss_growth } => {
+            let report = run_load_command(load, std::time::Duration::from_secs(3600), true)?;
+            let violations = report.soak_violations(max_rss_growth);
+            if violations.is_empty() {
+                println!("soak: PASS (every request answered exactly once by its deadline; planner RSS flat)");
+            } else {
+                for v in &violations {
+                    println!("soak: FAIL: {v}");
+                }
+                exit_code = Some(1);
+            }
+        }
+        Command::LoadWorker {
+            mut common,
+            clients,
+            rate,
+            duration,
+            deadline_ms,
+            seed,
+            vehicle_id_base,
+            part_out,
+        } => {
+            let _none = prepare_transport(&mut common)?;
+            let mut settings = LoadSettings::new(common.transport.clone(), clients, rate, duration);
+            settings.deadline = std::time::Duration::from_millis(deadline_ms);
+            settings.seed = seed;
+            settings.vehicle_id_base = vehicle_id_base;
+            settings.planner = planner_config(common.planner_config.as_deref())?;
+            let part = load::run_part(&settings, Instant::now())?;
+            std::fs::write(&part_out, serde_json::to_string(&part)?)
+                .with_context(|| format!("writing {}", part_out.display()))?;
+            return Ok(());
+        }
         Command::Case1 { mut common, seed } => {
             let _planner = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
-            let run = cases::run_case1(&config, common.transport, seed)?;
+            let run = cases::run_case1(&config, &common.transport, seed)?;
             let files = report::write_case1(&common.out, &run)?;
             let m = &run.metrics;
             println!(
@@ -190,10 +541,13 @@ fn main() -> Result<()> {
             );
             print_files(&files);
         }
-        Command::Case2 { mut common, seed } => {
-            let _planner = prepare_transport(&mut common)?;
+        Command::Case2 { common, seed } => {
+            if common.transport != Transport::InProcess {
+                // A planner process has one configuration; the ablation needs two.
+                anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
+            }
             let config = planner_config(common.planner_config.as_deref())?;
-            let case = cases::run_case2(&config, common.transport, seed)?;
+            let case = cases::run_case2(&config, &common.transport, seed)?;
             let files = report::write_case2(&common.out, &case)?;
             let s = case.summary();
             println!(
@@ -213,6 +567,10 @@ fn main() -> Result<()> {
             threads,
             baselines,
         } => {
+            if common.transport != Transport::InProcess && baselines {
+                // A planner process has one configuration; the no-hysteresis baseline needs another.
+                anyhow::bail!("with a remote transport, run the campaign with --baselines false");
+            }
             let _planner = prepare_transport(&mut common)?;
             let planner = planner_config(common.planner_config.as_deref())?;
             let entries = match &config {
@@ -257,6 +615,10 @@ fn main() -> Result<()> {
             }
             print_files(&files);
         }
+    }
+    if let Some(code) = exit_code {
+        println!("wall time {:.2} s", started.elapsed().as_secs_f64());
+        std::process::exit(code);
     }
     println!("wall time {:.2} s", started.elapsed().as_secs_f64());
     Ok(())

@@ -7,7 +7,7 @@ use sim_client::Transport;
 
 #[test]
 fn case1_runs_and_writes_its_files() {
-    let run = run_case1(&PlannerConfig::default(), Transport::InProcess, 1).unwrap();
+    let run = run_case1(&PlannerConfig::default(), &Transport::InProcess, 1).unwrap();
     let m = &run.metrics;
     assert_eq!(m.decisions, 100, "40 s at 0.4 s");
     assert_eq!(m.decisions_by_layer.total(), m.decisions);
@@ -48,7 +48,7 @@ fn case1_runs_and_writes_its_files() {
 
 #[test]
 fn case2_writes_both_switch_counts() {
-    let case = run_case2(&PlannerConfig::default(), Transport::InProcess, 1).unwrap();
+    let case = run_case2(&PlannerConfig::default(), &Transport::InProcess, 1).unwrap();
     assert!(case.with.hysteresis && !case.without.hysteresis);
     let dir = tempfile::tempdir().unwrap();
     write_case2(dir.path(), &case).unwrap();
@@ -62,7 +62,7 @@ fn case2_writes_both_switch_counts() {
 /// The paper's Case 2 claim: hysteresis cuts beta switches from 33 to 1.
 #[test]
 fn hysteresis_reduces_beta_switches_five_fold() {
-    let case = run_case2(&PlannerConfig::default(), Transport::InProcess, 1).unwrap();
+    let case = run_case2(&PlannerConfig::default(), &Transport::InProcess, 1).unwrap();
     let (with, without) = (case.with.metrics.beta_switches, case.without.metrics.beta_switches);
     assert!(
         5 * with.max(1) <= without,

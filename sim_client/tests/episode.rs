@@ -125,12 +125,27 @@ fn in_process_link_matches_the_planner_called_directly() {
 
 #[test]
 fn transport_flag_names_what_each_transport_needs() {
-    use sim_client::Transport;
+    use sim_client::link::ZenohTarget;
+    use sim_client::{LinkOptions, Transport};
     assert_eq!("inproc".parse::<Transport>().unwrap(), Transport::InProcess);
-    // Zenoh is reached through an endpoint, which a bare name cannot carry.
-    let e = "zenoh".parse::<Transport>().unwrap_err().to_string();
+    assert_eq!(
+        "iceoryx2".parse::<Transport>().unwrap(),
+        Transport::Iceoryx2 { prefix: None }
+    );
+    // Zenoh is reached through an endpoint or a configuration file, which a bare name
+    // cannot carry: connecting says what is missing.
+    let zenoh = "zenoh".parse::<Transport>().unwrap();
+    assert_eq!(zenoh, Transport::Zenoh(ZenohTarget::default()));
+    let e = zenoh
+        .open_channel(&LinkOptions::default())
+        .err()
+        .expect("no target")
+        .to_string();
     assert!(e.contains("--zenoh-connect"), "{e}");
-    let e = "iceoryx2".parse::<Transport>().unwrap_err().to_string();
-    assert!(e.contains("not implemented"), "{e}");
-    assert!("carrier-pigeon".parse::<Transport>().is_err());
+    let e = "carrier-pigeon".parse::<Transport>().unwrap_err().to_string();
+    assert!(
+        e.contains("inproc") && e.contains("iceoryx2") && e.contains("zenoh"),
+        "{e}"
+    );
+    assert!(Transport::InProcess.open_channel(&LinkOptions::default()).is_err());
 }

@@ -20,3 +20,121 @@ pub fn binary(name: &str) -> PathBuf {
     );
     path
 }
+
+/// A workspace binary started as a child process with its stderr in a log file; killed
+/// (SIGKILL) on drop, also when a test panics.
+pub struct Process {
+    child: std::process::Child,
+    log: PathBuf,
+}
+
+impl Process {
+    /// Starts `binary(name)` with `args`; stderr goes to `<scratch>/<tag>.log`.
+    pub fn start(name: &str, args: &[&str], tag: &str) -> Self {
+        let log = scratch_dir("logs").join(format!("{tag}.log"));
+        let child = std::process::Command::new(binary(name))
+            .args(args)
+            .env("RUST_LOG", "info,zenoh=warn")
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::fs::File::create(&log).expect("log file"))
+            .spawn()
+            .unwrap_or_else(|e| panic!("{name} starts: {e}"));
+        Self { child, log }
+    }
+
+    /// What the process wrote to stderr so far.
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// The process id.
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// SIGKILL: the process gets no chance to clean up.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// SIGTERM, then waits up to `wait` for the exit; the exit status, if it exited.
+    pub fn terminate(&mut self, wait: std::time::Duration) -> Option<std::process::ExitStatus> {
+        if let Ok(pid) = i32::try_from(self.child.id()) {
+            // SAFETY: signals our own, not yet reaped, child.
+            unsafe { libc::kill(pid, libc::SIGTERM) };
+        }
+        let until = std::time::Instant::now() + wait;
+        while std::time::Instant::now() < until {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some(status);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        None
+    }
+
+    /// Whether the process is still running.
+    pub fn is_running(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+}
+
+impl Drop for Process {
+    /// SIGTERM first, so that a planner releases its shared memory; SIGKILL if it hangs.
+    fn drop(&mut self) {
+        if self.is_running() && self.terminate(std::time::Duration::from_secs(3)).is_none() {
+            self.kill();
+        }
+    }
+}
+
+/// A fresh directory under the system's temp dir, unique to this test process and `name`.
+pub fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("hmdp-tests-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// An iceoryx2 prefix no other test (or test run) uses, so that tests cannot meet each
+/// other's planners in shared memory. Dropping it removes every file left under the prefix
+/// (iceoryx2 keeps a management segment per prefix, and a SIGKILLed process leaves more).
+pub struct Iceoryx2Prefix(String);
+
+impl Iceoryx2Prefix {
+    /// A new prefix containing `tag`.
+    pub fn new(tag: &str) -> Self {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        static NEXT: AtomicU32 = AtomicU32::new(0);
+        Self(format!(
+            "hmdpt{}{}{}_",
+            std::process::id(),
+            tag,
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ))
+    }
+
+    /// The prefix.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl Drop for Iceoryx2Prefix {
+    fn drop(&mut self) {
+        fn remove_under(dir: &std::path::Path, prefix: &str) {
+            let Ok(entries) = std::fs::read_dir(dir) else { return };
+            for entry in entries.flatten() {
+                let path = entry.path();
+                if path.is_dir() {
+                    remove_under(&path, prefix);
+                } else if entry.file_name().to_string_lossy().starts_with(prefix) {
+                    let _ = std::fs::remove_file(&path);
+                }
+            }
+        }
+        remove_under(std::path::Path::new("/dev/shm"), &self.0);
+        remove_under(&std::env::temp_dir().join("iceoryx2"), &self.0);
+    }
+}

@@ -334,3 +334,50 @@ fn round_trip_overhead_over_loopback_is_reported() {
     // Sanity only (the machine is shared): far below the 400 ms deadline.
     assert!(p(0.5) < 50_000, "median overhead {} us", p(0.5));
 }
+
+#[test]
+fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
+    let mut planner = Planner::start("restart", &[]);
+    let endpoint = planner.endpoint.clone();
+    let client = Client::connect(&planner);
+    let bincode = || Encoding::from(ENCODING_BINCODE);
+    let ask = |sequence: u64, wait: Duration| -> Vec<Vec<u8>> {
+        client.ask_raw(&encode_bincode(&request(6, sequence)), bincode(), wait)
+    };
+    assert_eq!(ask(1, Duration::from_secs(5)).len(), 1);
+    let _ = planner.child.kill();
+    let _ = planner.child.wait();
+    let wait = Duration::from_millis(300);
+    for sequence in 2..=4 {
+        let sent = Instant::now();
+        assert!(ask(sequence, wait).is_empty(), "an answer from a dead planner");
+        assert!(
+            sent.elapsed() < wait + Duration::from_secs(1),
+            "hung for {:?}",
+            sent.elapsed()
+        );
+    }
+    // The same endpoint again: the client session reconnects by itself.
+    let restarted = Command::new(binary("planner"))
+        .args(["serve", "--zenoh-listen", &endpoint, "--workers", "2"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("planner restarts");
+    planner.child = restarted;
+    let give_up = Instant::now() + STARTUP;
+    let mut sequence = 5;
+    loop {
+        let replies = ask(sequence, wait);
+        if let Some(reply) = replies.first() {
+            let r: PlanResponse = decode_bincode(reply).unwrap();
+            assert_eq!((r.vehicle_id, r.sequence), (6, sequence));
+            assert_eq!(replies.len(), 1);
+            break;
+        }
+        assert!(Instant::now() < give_up, "no answer after the restart");
+        std::thread::sleep(Duration::from_millis(100));
+        sequence += 1;
+    }
+}

@@ -32,8 +32,9 @@ enum Command {
     },
     /// Print the default planner configuration as TOML.
     DefaultConfig,
-    /// Serve decisions over Zenoh (queryable `hmdp/planner/plan`, statistics on
-    /// `hmdp/planner/stats`) until SIGINT or SIGTERM. See docs/service.md.
+    /// Serve decisions over iceoryx2 (shared memory, this machine) and/or Zenoh (queryable
+    /// `hmdp/planner/plan`, statistics on `hmdp/planner/stats`) until SIGINT or SIGTERM.
+    /// See docs/service.md.
     Serve(ServeArgs),
 }
 
@@ -42,6 +43,19 @@ struct ServeArgs {
     /// Planner configuration (TOML); built-in defaults when absent.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Serve over iceoryx2 shared memory (request-response `hmdp/planner/plan`).
+    #[arg(long)]
+    iceoryx2: bool,
+    /// iceoryx2 shared-memory file prefix; clients must use the same (default: iceoryx2's).
+    #[arg(long, value_name = "PREFIX", requires = "iceoryx2")]
+    iceoryx2_prefix: Option<String>,
+    /// iceoryx2 clients (vehicles) that may be connected at once.
+    #[arg(long, default_value_t = 64, requires = "iceoryx2")]
+    iceoryx2_max_clients: usize,
+    /// Zenoh configuration file (JSON5, as zenohd's), e.g. deploy/zenoh/planner.json5;
+    /// --zenoh-listen / --zenoh-connect replace its endpoints.
+    #[arg(long, value_name = "FILE")]
+    zenoh_config: Option<PathBuf>,
     /// Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable).
     #[arg(long = "zenoh-listen", value_name = "ENDPOINT")]
     zenoh_listen: Vec<String>,
@@ -62,6 +76,7 @@ struct ServeArgs {
 
 fn serve(args: ServeArgs) -> Result<()> {
     use planner::service::{Service, ServiceConfig};
+    use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     use std::time::Duration;
 
@@ -72,8 +87,11 @@ fn serve(args: ServeArgs) -> Result<()> {
         )
         .with_writer(std::io::stderr)
         .init();
-    if args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() {
-        anyhow::bail!("give at least one --zenoh-listen or --zenoh-connect endpoint");
+    let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
+    if !zenoh_wanted && !args.iceoryx2 {
+        anyhow::bail!(
+            "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
+        );
     }
     let planner_config = load_config(args.config.as_ref())?;
     let mut config = ServiceConfig::default();
@@ -88,7 +106,15 @@ fn serve(args: ServeArgs) -> Result<()> {
     if !config.inject_solve_delay.is_zero() {
         tracing::warn!(ms = args.inject_solve_delay_ms, "TEST ONLY: injected solve delay");
     }
-    let zenoh_config = planner::zenoh_front::peer_config(&args.zenoh_listen, &args.zenoh_connect)?;
+    let zenoh_config = if zenoh_wanted {
+        Some(planner::zenoh_front::service_config(
+            args.zenoh_config.as_deref(),
+            &args.zenoh_listen,
+            &args.zenoh_connect,
+        )?)
+    } else {
+        None
+    };
     let service = Arc::new(Service::start(planner_config, config.clone())?);
     tracing::info!(
         workers = config.workers,
@@ -100,27 +126,89 @@ fn serve(args: ServeArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("building the tokio runtime")?;
-    runtime.block_on(async {
-        let shutdown = async {
-            let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-                Ok(s) => s,
-                Err(e) => {
-                    tracing::warn!("cannot watch SIGTERM: {e}");
-                    let _ = tokio::signal::ctrl_c().await;
-                    return;
-                }
-            };
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
+    // The iceoryx2 ports stay on one thread of their own; if it ends (e.g. another planner
+    // already serves the prefix), the whole process stops.
+    let stop_iceoryx2 = Arc::new(AtomicBool::new(false));
+    let (iceoryx2_done_tx, iceoryx2_done) = tokio::sync::oneshot::channel::<Result<()>>();
+    let iceoryx2_thread = if args.iceoryx2 {
+        let options = iceoryx2_transport::ServerOptions {
+            prefix: args.iceoryx2_prefix.clone(),
+            max_clients: args.iceoryx2_max_clients,
+            ..Default::default()
+        };
+        let service = Arc::clone(&service);
+        let stop = Arc::clone(&stop_iceoryx2);
+        Some(
+            std::thread::Builder::new()
+                .name("iceoryx2-server".into())
+                .spawn(move || {
+                    let result = planner::iceoryx2_front::serve(service, &options, &stop).map_err(anyhow::Error::from);
+                    let _ = iceoryx2_done_tx.send(result);
+                })?,
+        )
+    } else {
+        drop(iceoryx2_done_tx);
+        None
+    };
+    let result = runtime.block_on(async {
+        let iceoryx2_ended = async {
+            match iceoryx2_done.await {
+                Ok(result) => Some(result),
+                // No iceoryx2 front: never ends by itself.
+                Err(_) => std::future::pending().await,
             }
         };
-        planner::zenoh_front::serve(Arc::clone(&service), zenoh_config, shutdown).await
-    })?;
+        let (shutdown_tx, shutdown_rx) = tokio::sync::oneshot::channel::<()>();
+        let zenoh = async {
+            match zenoh_config {
+                Some(cfg) => {
+                    planner::zenoh_front::serve(Arc::clone(&service), cfg, async {
+                        let _ = shutdown_rx.await;
+                    })
+                    .await
+                }
+                None => Ok(()),
+            }
+        };
+        let stop = async {
+            let outcome = tokio::select! {
+                _ = termination_signal() => None,
+                ended = iceoryx2_ended => ended,
+            };
+            let _ = shutdown_tx.send(());
+            outcome
+        };
+        let (zenoh_result, iceoryx2_outcome) = tokio::join!(zenoh, stop);
+        zenoh_result?;
+        match iceoryx2_outcome {
+            Some(Err(e)) => Err(e.context("iceoryx2 front end")),
+            _ => Ok(()),
+        }
+    });
+    stop_iceoryx2.store(true, Ordering::Relaxed);
+    if let Some(t) = iceoryx2_thread {
+        let _ = t.join();
+    }
     drop(runtime);
     let snapshot = service.stats().snapshot();
     tracing::info!(stats = %serde_json::to_string(&snapshot).unwrap_or_default(), "final statistics");
-    Ok(())
+    result
+}
+
+/// Resolves on SIGINT or SIGTERM.
+async fn termination_signal() {
+    let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+        Ok(s) => s,
+        Err(e) => {
+            tracing::warn!("cannot watch SIGTERM: {e}");
+            let _ = tokio::signal::ctrl_c().await;
+            return;
+        }
+    };
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => {}
+        _ = term.recv() => {}
+    }
 }
 
 fn load_config(path: Option<&PathBuf>) -> Result<PlannerConfig> {

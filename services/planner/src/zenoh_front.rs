@@ -30,6 +30,25 @@ pub fn peer_config(listen: &[String], connect: &[String]) -> Result<Config> {
     Config::from_json5(&json.to_string()).map_err(|e| anyhow!("zenoh configuration: {e}"))
 }
 
+/// The service's Zenoh configuration: the file when given (any zenohd-style JSON5 file,
+/// e.g. `deploy/zenoh/planner.json5`), else a peer with scouting off; `listen` / `connect`
+/// endpoints given on the command line replace the file's.
+pub fn service_config(file: Option<&std::path::Path>, listen: &[String], connect: &[String]) -> Result<Config> {
+    let Some(path) = file else {
+        return peer_config(listen, connect);
+    };
+    let mut config = Config::from_file(path).map_err(|e| anyhow!("zenoh configuration {}: {e}", path.display()))?;
+    for (key, endpoints) in [("listen/endpoints", listen), ("connect/endpoints", connect)] {
+        if !endpoints.is_empty() {
+            let json = serde_json::to_string(endpoints)?;
+            config
+                .insert_json5(key, &json)
+                .map_err(|e| anyhow!("zenoh configuration {key}: {e}"))?;
+        }
+    }
+    Ok(config)
+}
+
 /// The wire format a query asks for: JSON if its encoding is `application/json`, else
 /// bincode.
 pub fn format_of(encoding: Option<&Encoding>) -> WireFormat {

@@ -1,0 +1,174 @@
+//! The client side: one request at a time, waiting on the response event.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::client::Client as RawClient;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event, request_response};
+use protocol::{
+    PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
+    ICEORYX2_PLAN_SERVICE,
+};
+
+use crate::{node, service_name, setup, Ipc, TransportError};
+
+/// Settings of a [`Client`].
+#[derive(Debug, Clone)]
+pub struct ClientOptions {
+    /// Shared-memory file prefix; the planner's (see [`crate::config`]).
+    pub prefix: Option<String>,
+    /// How long [`Client::connect`] waits for the planner's services to appear.
+    pub ready_timeout: Duration,
+    /// Node name (shows up in iceoryx2's tools), e.g. `hmdp-vehicle-7`.
+    pub node_name: String,
+}
+
+impl Default for ClientOptions {
+    fn default() -> Self {
+        Self {
+            prefix: None,
+            ready_timeout: Duration::from_secs(30),
+            node_name: format!("hmdp-vehicle-{}", std::process::id()),
+        }
+    }
+}
+
+/// What came back for one request.
+#[derive(Debug, Clone)]
+pub struct Exchange {
+    /// The first answer, if one arrived in time.
+    pub response: Option<PlanResponse>,
+    /// Answers beyond the first (the protocol allows exactly one: always 0 with a correct
+    /// planner).
+    pub extra_responses: usize,
+    /// Planners connected when the request was sent (0: nobody serves, the request went
+    /// nowhere and the call returned at once).
+    pub servers: usize,
+}
+
+/// A vehicle's connection to the planner over iceoryx2. Not for sharing between threads:
+/// one per vehicle thread.
+pub struct Client {
+    port: RawClient<Ipc, PlanRequest, (), PlanResponse, ()>,
+    requests: Notifier<Ipc>,
+    responses: Listener<Ipc>,
+    // The ports borrow nothing, but the services and the node must outlive them.
+    _plan_service: request_response::PortFactory<Ipc, PlanRequest, (), PlanResponse, ()>,
+    _event_services: [event::PortFactory<Ipc>; 2],
+    _node: Node<Ipc>,
+}
+
+impl Client {
+    /// Opens the planner's services, waiting up to `options.ready_timeout` for a planner to
+    /// create them.
+    pub fn connect(options: &ClientOptions) -> Result<Self, TransportError> {
+        let config = crate::config(options.prefix.as_deref())?;
+        let node = node(&config, &options.node_name)?;
+        let give_up = Instant::now() + options.ready_timeout;
+        let service = loop {
+            match node
+                .service_builder(&service_name(ICEORYX2_PLAN_SERVICE)?)
+                .request_response::<PlanRequest, PlanResponse>()
+                .open()
+            {
+                Ok(s) => break s,
+                Err(e) if Instant::now() >= give_up => {
+                    tracing::debug!("opening {ICEORYX2_PLAN_SERVICE}: {e:?}");
+                    return Err(TransportError::NoService {
+                        service: ICEORYX2_PLAN_SERVICE,
+                    });
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(50)),
+            }
+        };
+        let open_event = |name: &'static str| -> Result<event::PortFactory<Ipc>, TransportError> {
+            loop {
+                match node.service_builder(&service_name(name)?).event().open() {
+                    Ok(s) => return Ok(s),
+                    Err(e) if Instant::now() >= give_up => {
+                        tracing::debug!("opening {name}: {e:?}");
+                        return Err(TransportError::NoService { service: name });
+                    }
+                    Err(_) => std::thread::sleep(Duration::from_millis(50)),
+                }
+            }
+        };
+        let requests_event = open_event(ICEORYX2_PLAN_REQUEST_EVENT_SERVICE)?;
+        let responses_event = open_event(ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE)?;
+        let port = service.client_builder().create().map_err(setup("client port"))?;
+        let requests = requests_event
+            .notifier_builder()
+            .create()
+            .map_err(setup("request notifier"))?;
+        let responses = responses_event
+            .listener_builder()
+            .create()
+            .map_err(setup("response listener"))?;
+        Ok(Self {
+            port,
+            requests,
+            responses,
+            _plan_service: service,
+            _event_services: [requests_event, responses_event],
+            _node: node,
+        })
+    }
+
+    /// Sends `request` (written straight into shared memory) and waits up to `wait` for the
+    /// answer. A late answer to an earlier request is never taken for this one.
+    pub fn request(&mut self, request: PlanRequest, wait: Duration) -> Result<Exchange, TransportError> {
+        let deadline = Instant::now() + wait;
+        let slot = self
+            .port
+            .loan_uninit()
+            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        let pending = slot
+            .write_payload(request)
+            .send()
+            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        let servers = pending.number_of_server_connections();
+        if servers == 0 {
+            return Ok(Exchange {
+                response: None,
+                extra_responses: 0,
+                servers,
+            });
+        }
+        self.requests
+            .notify()
+            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        loop {
+            match pending.receive() {
+                Ok(Some(first)) => {
+                    let response = first.payload().clone();
+                    drop(first);
+                    let mut extra_responses = 0;
+                    while let Ok(Some(_)) = pending.receive() {
+                        extra_responses += 1;
+                    }
+                    return Ok(Exchange {
+                        response: Some(response),
+                        extra_responses,
+                        servers,
+                    });
+                }
+                Ok(None) => {}
+                Err(e) => return Err(TransportError::Receive(format!("{e:?}"))),
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(Exchange {
+                    response: None,
+                    extra_responses: 0,
+                    servers,
+                });
+            }
+            // Any answer wakes every client; the loop looks whether it was ours.
+            if let Err(e) = self.responses.timed_wait(|_| {}, deadline - now) {
+                return Err(TransportError::Receive(format!("{e:?}")));
+            }
+        }
+    }
+}

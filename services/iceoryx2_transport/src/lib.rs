@@ -1,0 +1,119 @@
+//! The planner protocol over iceoryx2: zero-copy shared memory between processes on one
+//! machine.
+//!
+//! * Data: the request-response service [`protocol::ICEORYX2_PLAN_SERVICE`] carrying
+//!   [`PlanRequest`] / [`PlanResponse`] in place (no serialisation).
+//! * Wake-ups: iceoryx2 request-response has no blocking receive, so two event services pair
+//!   with it. Clients notify [`protocol::ICEORYX2_PLAN_REQUEST_EVENT_SERVICE`] after sending,
+//!   which wakes the server; the server notifies
+//!   [`protocol::ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE`] after answering, which wakes the
+//!   clients. Nobody polls.
+//! * Threads: the `ipc_threadsafe` service variant, so that an answer can be sent from the
+//!   thread that produced it (a solver worker or the watchdog) while the server thread keeps
+//!   receiving.
+//! * Crashes: a process killed with SIGKILL leaves its node's shared memory behind; both sides
+//!   remove dead nodes' resources when they start (see [`dead_nodes`]).
+
+mod client;
+mod server;
+
+pub use client::{Client, ClientOptions, Exchange};
+pub use server::{serve, Responder, ServerOptions};
+
+pub use iceoryx2::config::Config as IceoryxConfig;
+use iceoryx2::config::Config;
+use iceoryx2::prelude::*;
+use thiserror::Error;
+
+/// The iceoryx2 service variant of every port here.
+pub type Ipc = ipc_threadsafe::Service;
+
+/// Failures of the iceoryx2 transport. iceoryx2's own error types differ per call; their
+/// text is kept.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum TransportError {
+    /// The configuration (e.g. the prefix) is invalid.
+    #[error("iceoryx2 configuration: {0}")]
+    Config(String),
+    /// A node, service or port could not be created or opened.
+    #[error("iceoryx2 setup ({what}): {detail}")]
+    Setup { what: &'static str, detail: String },
+    /// The planner's service does not exist (no planner running under this prefix).
+    #[error("no planner service `{service}` (is `planner serve --iceoryx2` running with the same prefix?)")]
+    NoService { service: &'static str },
+    /// Sending a request or a response failed.
+    #[error("iceoryx2 send: {0}")]
+    Send(String),
+    /// Receiving failed.
+    #[error("iceoryx2 receive: {0}")]
+    Receive(String),
+}
+
+fn setup<E: core::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> TransportError {
+    move |e| TransportError::Setup {
+        what,
+        detail: format!("{e:?}"),
+    }
+}
+
+/// The iceoryx2 configuration: the defaults with `prefix` (when given) as the prefix of every
+/// shared-memory file, so that independent deployments (or tests) on one machine do not see
+/// each other. Planner and clients must use the same prefix.
+pub fn config(prefix: Option<&str>) -> Result<Config, TransportError> {
+    let mut config = Config::default();
+    if let Some(prefix) = prefix {
+        config.global.prefix = FileName::new(prefix.as_bytes())
+            .map_err(|e| TransportError::Config(format!("prefix `{prefix}`: {e:?}")))?;
+    }
+    Ok(config)
+}
+
+/// Nodes under `config`'s prefix whose process died without cleaning up (e.g. killed with
+/// SIGKILL): their shared memory is still there until a node is created or a service opened.
+pub fn dead_nodes(config: &Config) -> usize {
+    let mut dead = 0;
+    let result = Node::<Ipc>::list(config, |state| {
+        if let NodeState::Dead(_) = state {
+            dead += 1;
+        }
+        CallbackProgression::Continue
+    });
+    if let Err(e) = result {
+        tracing::warn!("cannot list iceoryx2 nodes: {e:?}");
+    }
+    dead
+}
+
+/// iceoryx2 logs through its own logger; keep it to warnings unless `IOX2_LOG_LEVEL` says
+/// otherwise.
+fn quiet_iceoryx2_log() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| set_log_level_from_env_or(LogLevel::Warn));
+}
+
+fn node(config: &Config, name: &str) -> Result<Node<Ipc>, TransportError> {
+    quiet_iceoryx2_log();
+    let name = NodeName::new(name).map_err(setup("node name"))?;
+    let node = NodeBuilder::new()
+        .name(&name)
+        .config(config)
+        // The process decides about signals (the planner handles SIGINT/SIGTERM itself).
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Ipc>()
+        .map_err(setup("node"))?;
+    // Creating a node already removes dead nodes' resources (iceoryx2's default); this
+    // catches the ones another process was busy with, and says so.
+    let cleanup = node.try_cleanup_dead_nodes();
+    if cleanup.cleanups > 0 || cleanup.failed_cleanups > 0 {
+        tracing::info!(
+            cleaned = cleanup.cleanups,
+            failed = cleanup.failed_cleanups,
+            "stale iceoryx2 resources of dead processes"
+        );
+    }
+    Ok(node)
+}
+
+fn service_name(name: &'static str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(name).map_err(setup("service name"))
+}

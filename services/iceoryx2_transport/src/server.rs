@@ -1,0 +1,145 @@
+//! The server side: one thread receives requests; whoever computes the answer sends it.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::notifier::Notifier;
+use protocol::{
+    PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
+    ICEORYX2_PLAN_SERVICE,
+};
+
+use crate::{node, service_name, setup, Ipc, TransportError};
+
+/// Settings of the planner's iceoryx2 endpoint.
+#[derive(Debug, Clone)]
+pub struct ServerOptions {
+    /// Shared-memory file prefix (see [`crate::config`]).
+    pub prefix: Option<String>,
+    /// Vehicle clients that may be connected at once.
+    pub max_clients: usize,
+    /// How often the server thread looks at the shutdown flag while no request arrives.
+    pub shutdown_poll: Duration,
+}
+
+impl Default for ServerOptions {
+    fn default() -> Self {
+        Self {
+            prefix: None,
+            max_clients: 64,
+            shutdown_poll: Duration::from_millis(100),
+        }
+    }
+}
+
+/// Requests a client may have in flight; a vehicle has one at a time, the rest is headroom for
+/// requests whose answer it gave up on.
+const MAX_ACTIVE_REQUESTS_PER_CLIENT: usize = 4;
+
+/// The right to answer one request, exactly once. `Send`: it can move to the thread that
+/// computes the answer.
+pub struct Responder {
+    request: ActiveRequest<Ipc, PlanRequest, (), PlanResponse, ()>,
+    notifier: Arc<Notifier<Ipc>>,
+}
+
+impl Responder {
+    /// The request, read in place from shared memory.
+    pub fn request(&self) -> &PlanRequest {
+        self.request.payload()
+    }
+
+    /// Writes the answer into shared memory, sends it and wakes the clients. Fails when the
+    /// client is gone (it died or stopped waiting).
+    pub fn respond(self, response: PlanResponse) -> Result<(), TransportError> {
+        let Responder { request, notifier } = self;
+        let slot = request
+            .loan_uninit()
+            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        slot.write_payload(response)
+            .send()
+            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        // Dropping the active request ends the response stream before the clients wake.
+        drop(request);
+        notifier.notify().map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        Ok(())
+    }
+}
+
+/// Serves the planner service under `options` until `shutdown` is set: every request is
+/// handed to `handler` together with its [`Responder`]. Blocks the calling thread, which
+/// sleeps on the request event between requests.
+pub fn serve(
+    options: &ServerOptions,
+    shutdown: &AtomicBool,
+    mut handler: impl FnMut(Responder),
+) -> Result<(), TransportError> {
+    let config = crate::config(options.prefix.as_deref())?;
+    let node = node(&config, "hmdp-planner")?;
+    let max_clients = options.max_clients.max(1);
+    let service = node
+        .service_builder(&service_name(ICEORYX2_PLAN_SERVICE)?)
+        .request_response::<PlanRequest, PlanResponse>()
+        // One planner per prefix: with two servers every request would get two answers.
+        .max_servers(1)
+        .max_clients(max_clients)
+        .max_nodes(max_clients + 1)
+        .max_active_requests_per_client(MAX_ACTIVE_REQUESTS_PER_CLIENT)
+        .max_response_buffer_size(MAX_ACTIVE_REQUESTS_PER_CLIENT)
+        .open_or_create()
+        .map_err(setup("request-response service"))?;
+    let requests_event = node
+        .service_builder(&service_name(ICEORYX2_PLAN_REQUEST_EVENT_SERVICE)?)
+        .event()
+        .max_notifiers(max_clients)
+        .max_listeners(1)
+        .max_nodes(max_clients + 1)
+        .open_or_create()
+        .map_err(setup("request event service"))?;
+    let responses_event = node
+        .service_builder(&service_name(ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE)?)
+        .event()
+        .max_notifiers(1)
+        .max_listeners(max_clients)
+        .max_nodes(max_clients + 1)
+        .open_or_create()
+        .map_err(setup("response event service"))?;
+    let listener = requests_event
+        .listener_builder()
+        .create()
+        .map_err(setup("request listener"))?;
+    let notifier = Arc::new(
+        responses_event
+            .notifier_builder()
+            .create()
+            .map_err(setup("response notifier"))?,
+    );
+    let server = service
+        .server_builder()
+        .create()
+        .map_err(setup("server port (is another planner serving this prefix?)"))?;
+    tracing::info!(service = ICEORYX2_PLAN_SERVICE, "planner serving over iceoryx2");
+    while !shutdown.load(Ordering::Relaxed) {
+        if let Err(e) = listener.timed_wait(|_| {}, options.shutdown_poll) {
+            tracing::warn!("waiting for requests: {e:?}");
+            std::thread::sleep(options.shutdown_poll);
+        }
+        loop {
+            match server.receive() {
+                Ok(Some(request)) => handler(Responder {
+                    request,
+                    notifier: Arc::clone(&notifier),
+                }),
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!("receiving a request: {e:?}");
+                    break;
+                }
+            }
+        }
+    }
+    tracing::info!("iceoryx2 server stopped");
+    Ok(())
+}

@@ -1,0 +1,308 @@
+//! `planner serve --iceoryx2` as a process, with clients in this process and as processes:
+//! determinism against the in-process planner, concurrent vehicles, the watchdog, typed
+//! rejections, and crashes (the planner killed and restarted, a vehicle killed mid-request).
+//!
+//! Every test uses its own iceoryx2 prefix, so that tests running in parallel never share
+//! shared memory.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2_transport::{Client, ClientOptions, Exchange};
+use protocol::{decode_json_str, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
+use system_tests::{binary, scratch_dir, Iceoryx2Prefix, Process};
+
+/// How long a planner may take to start answering (a shared machine).
+const STARTUP: Duration = Duration::from_secs(60);
+
+fn start_planner(prefix: &str, tag: &str, extra: &[&str]) -> Process {
+    let mut args = vec!["serve", "--iceoryx2", "--iceoryx2-prefix", prefix, "--workers", "2"];
+    args.extend_from_slice(extra);
+    Process::start("planner", &args, tag)
+}
+
+fn connect(prefix: &str, name: &str) -> Client {
+    let options = ClientOptions {
+        prefix: Some(prefix.to_string()),
+        ready_timeout: STARTUP,
+        node_name: name.to_string(),
+    };
+    Client::connect(&options).expect("the planner's iceoryx2 services")
+}
+
+/// Sends requests until the planner answers (its server port may come up after its
+/// services).
+fn wait_until_serving(client: &mut Client, planner: &Process) {
+    let give_up = Instant::now() + STARTUP;
+    loop {
+        let exchange = client.request(request(999, 0), Duration::from_millis(500)).unwrap();
+        if exchange.response.is_some() {
+            return;
+        }
+        assert!(
+            Instant::now() < give_up,
+            "the planner never answered\n{}",
+            planner.log()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The worked example of docs/protocol.md (3 lanes, one SV ahead) as vehicle `id`.
+fn request(vehicle_id: u64, sequence: u64) -> PlanRequest {
+    let mut r: PlanRequest = decode_json_str(
+        r#"{"version":1,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
+            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
+            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
+            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
+    )
+    .unwrap();
+    r.vehicle_id = vehicle_id;
+    r.sequence = sequence;
+    r
+}
+
+fn answered(exchange: Exchange, vehicle_id: u64, sequence: u64) -> PlanResponse {
+    assert_eq!(exchange.extra_responses, 0, "exactly one answer");
+    let response = exchange
+        .response
+        .unwrap_or_else(|| panic!("vehicle {vehicle_id} sequence {sequence}: no answer"));
+    assert_eq!((response.vehicle_id, response.sequence), (vehicle_id, sequence));
+    response
+}
+
+fn rejection(response: &PlanResponse) -> (RejectReason, String) {
+    match response.outcome.get().unwrap() {
+        OutcomeRef::Rejected(r) => (r.reason().unwrap(), r.field().to_string()),
+        OutcomeRef::Decided(d) => panic!("expected a rejection, got a decision of layer {:?}", d.layer()),
+    }
+}
+
+fn iceoryx2_config(prefix: &str) -> iceoryx2_transport::IceoryxConfig {
+    iceoryx2_transport::config(Some(prefix)).unwrap()
+}
+
+#[test]
+fn case1_over_iceoryx2_matches_in_process_byte_for_byte() {
+    let _files = Iceoryx2Prefix::new("case1");
+    let prefix = _files.as_str().to_string();
+    let planner = start_planner(&prefix, "case1-planner", &[]);
+    let mut probe = connect(&prefix, "probe");
+    wait_until_serving(&mut probe, &planner);
+    let dir = scratch_dir("iceoryx2-case1");
+    let run = |name: &str, args: &[&str]| {
+        let out = std::process::Command::new(binary("sim_client"))
+            .args(["case1", "--out"])
+            .arg(dir.join(name))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: {}\nplanner log:\n{}",
+            String::from_utf8_lossy(&out.stderr),
+            planner.log()
+        );
+        std::fs::read(dir.join(name).join("case1/decisions.csv")).unwrap()
+    };
+    let inproc = run("inproc", &["--transport", "inproc"]);
+    let shared = run("iceoryx2", &["--transport", "iceoryx2", "--iceoryx2-prefix", &prefix]);
+    // The simulator starting its own planner under a prefix of its own.
+    let spawned = run("spawned", &["--transport", "iceoryx2", "--spawn-planner"]);
+    assert!(!inproc.is_empty());
+    assert!(inproc == shared, "decisions.csv differs between inproc and iceoryx2");
+    assert!(
+        inproc == spawned,
+        "decisions.csv differs between inproc and a spawned iceoryx2 planner"
+    );
+}
+
+#[test]
+fn eight_concurrent_vehicles_each_get_every_answer_exactly_once() {
+    let _files = Iceoryx2Prefix::new("eight");
+    let prefix = _files.as_str().to_string();
+    let planner = start_planner(&prefix, "eight-planner", &[]);
+    let mut probe = connect(&prefix, "probe");
+    wait_until_serving(&mut probe, &planner);
+    let threads: Vec<_> = (1..=8u64)
+        .map(|vehicle| {
+            let prefix = prefix.clone();
+            std::thread::spawn(move || {
+                let mut client = connect(&prefix, &format!("vehicle-{vehicle}"));
+                (1..=20u64)
+                    .map(|sequence| {
+                        let exchange = client
+                            .request(request(vehicle, sequence), Duration::from_secs(5))
+                            .unwrap();
+                        let r = answered(exchange, vehicle, sequence);
+                        assert!(r.outcome.as_decided().is_some(), "{r:?}");
+                        (r.vehicle_id, r.sequence)
+                    })
+                    .collect::<Vec<_>>()
+            })
+        })
+        .collect();
+    let mut all = Vec::new();
+    for t in threads {
+        all.extend(t.join().expect("vehicle thread"));
+    }
+    all.sort_unstable();
+    let expected: Vec<(u64, u64)> = (1..=8u64).flat_map(|v| (1..=20u64).map(move |s| (v, s))).collect();
+    assert_eq!(all, expected);
+}
+
+#[test]
+fn watchdog_answers_the_fallback_by_the_deadline() {
+    let _files = Iceoryx2Prefix::new("watchdog");
+    let prefix = _files.as_str().to_string();
+    let planner = start_planner(&prefix, "watchdog-planner", &["--inject-solve-delay-ms", "1000"]);
+    let mut client = connect(&prefix, "watchdog-vehicle");
+    wait_until_serving(&mut client, &planner);
+    let mut round_trips = Vec::new();
+    for sequence in 1..=5u64 {
+        let mut r = request(3, sequence);
+        r.deadline_us = 100_000;
+        let sent = Instant::now();
+        let exchange = client.request(r, Duration::from_secs(2)).unwrap();
+        let elapsed = sent.elapsed();
+        let response = answered(exchange, 3, sequence);
+        let decided = response.outcome.as_decided().expect("a decision");
+        assert_eq!(decided.layer().unwrap(), Layer::WatchdogFallback);
+        // The planner's own clock: arrival to answer, within the deadline plus 5 ms.
+        let server_us = u64::from(response.queue_us) + u64::from(response.solve_us);
+        assert!(
+            (100_000..=105_000).contains(&server_us),
+            "answered {server_us} us after arrival"
+        );
+        round_trips.push(elapsed);
+    }
+    eprintln!("watchdog round trips over iceoryx2 (deadline 100 ms): {round_trips:?}");
+    for t in &round_trips {
+        assert!(*t >= Duration::from_millis(100), "answered before the deadline: {t:?}");
+        // Loose: the client's clock includes scheduling on a shared machine.
+        assert!(*t <= Duration::from_millis(200), "answered late: {t:?}");
+    }
+}
+
+#[test]
+fn invalid_requests_get_typed_rejections() {
+    let _files = Iceoryx2Prefix::new("reject");
+    let prefix = _files.as_str().to_string();
+    let planner = start_planner(&prefix, "reject-planner", &[]);
+    let mut client = connect(&prefix, "reject-vehicle");
+    wait_until_serving(&mut client, &planner);
+    let mut ask = |r: PlanRequest| {
+        let (v, s) = (r.vehicle_id, r.sequence);
+        answered(client.request(r, Duration::from_secs(5)).unwrap(), v, s)
+    };
+    let mut wrong_version = request(5, 1);
+    wrong_version.version = 2;
+    assert_eq!(
+        rejection(&ask(wrong_version)),
+        (RejectReason::UnsupportedVersion, "version".into())
+    );
+    let mut nan = request(5, 2);
+    nan.ego.v_mps = f64::NAN;
+    assert_eq!(rejection(&ask(nan)).0, RejectReason::NonFinite);
+    let mut lane = request(5, 3);
+    lane.ego.maneuver.lane = 9;
+    assert_eq!(rejection(&ask(lane)).0, RejectReason::LaneOutOfRange);
+    // The planner is unaffected: the next valid request is decided.
+    assert!(ask(request(5, 4)).outcome.as_decided().is_some());
+}
+
+#[test]
+fn planner_killed_and_restarted_clients_recover_and_stale_memory_is_removed() {
+    let _files = Iceoryx2Prefix::new("restart");
+    let prefix = _files.as_str().to_string();
+    let config = iceoryx2_config(&prefix);
+    let mut planner = start_planner(&prefix, "restart-planner-1", &[]);
+    let mut client = connect(&prefix, "restart-vehicle");
+    wait_until_serving(&mut client, &planner);
+    for sequence in 1..=3 {
+        answered(
+            client.request(request(7, sequence), Duration::from_secs(5)).unwrap(),
+            7,
+            sequence,
+        );
+    }
+    assert_eq!(iceoryx2_transport::dead_nodes(&config), 0);
+    planner.kill();
+    assert!(
+        iceoryx2_transport::dead_nodes(&config) >= 1,
+        "a SIGKILLed planner leaves its node behind"
+    );
+    // No answer, but no hang either: every request returns by its wait.
+    let wait = Duration::from_millis(300);
+    for sequence in 4..=6 {
+        let sent = Instant::now();
+        let exchange = client.request(request(7, sequence), wait).unwrap();
+        assert!(exchange.response.is_none());
+        assert!(
+            sent.elapsed() < wait + Duration::from_secs(1),
+            "hung for {:?}",
+            sent.elapsed()
+        );
+    }
+    let planner = start_planner(&prefix, "restart-planner-2", &[]);
+    let give_up = Instant::now() + STARTUP;
+    let mut sequence = 7;
+    loop {
+        let exchange = client.request(request(7, sequence), wait).unwrap();
+        if let Some(response) = exchange.response {
+            assert_eq!((response.vehicle_id, response.sequence), (7, sequence));
+            break;
+        }
+        assert!(
+            Instant::now() < give_up,
+            "no answer after the restart\n{}",
+            planner.log()
+        );
+        sequence += 1;
+    }
+    assert_eq!(
+        iceoryx2_transport::dead_nodes(&config),
+        0,
+        "the restarted planner removed the dead node's resources"
+    );
+    for s in sequence + 1..sequence + 4 {
+        answered(client.request(request(7, s), Duration::from_secs(5)).unwrap(), 7, s);
+    }
+}
+
+#[test]
+fn a_vehicle_killed_mid_request_does_not_disturb_the_others() {
+    let _files = Iceoryx2Prefix::new("vkill");
+    let prefix = _files.as_str().to_string();
+    // Slow solves (still inside the deadline) so that the victim dies while waiting.
+    let planner = start_planner(&prefix, "vkill-planner", &["--inject-solve-delay-ms", "150"]);
+    let mut client = connect(&prefix, "vkill-survivor");
+    wait_until_serving(&mut client, &planner);
+    let mut victim = Process::start(
+        "sim_client",
+        &[
+            "case1",
+            "--out",
+            scratch_dir("vkill").to_str().unwrap(),
+            "--transport",
+            "iceoryx2",
+            "--iceoryx2-prefix",
+            &prefix,
+        ],
+        "vkill-victim",
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(victim.is_running(), "the victim ended early:\n{}", victim.log());
+    victim.kill();
+    for sequence in 1..=10 {
+        let r = answered(
+            client.request(request(8, sequence), Duration::from_secs(5)).unwrap(),
+            8,
+            sequence,
+        );
+        let layer = r.outcome.as_decided().expect("a decision").layer().unwrap();
+        assert_ne!(layer, Layer::WatchdogFallback, "the survivor is served normally");
+    }
+    // A new vehicle (a new node) removes what the victim left behind.
+    drop(connect(&prefix, "vkill-newcomer"));
+    assert_eq!(iceoryx2_transport::dead_nodes(&iceoryx2_config(&prefix)), 0);
+}
