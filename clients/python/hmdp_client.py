@@ -1,0 +1,265 @@
+#!/usr/bin/env python3
+"""Example client of the HMDP planner service over Zenoh, in Python.
+
+Sends a perception snapshot (a JSON ``PlanRequest``, see docs/protocol.md) to a running
+``planner serve`` and prints the decision it gets back as one JSON object per line::
+
+    python3 hmdp_client.py --connect tcp/127.0.0.1:7447                 # built-in snapshot
+    python3 hmdp_client.py --connect tcp/127.0.0.1:7447 --request snapshot.json
+    python3 hmdp_client.py --connect tcp/127.0.0.1:7447 --steps 5 --stats
+
+The planner keeps no state per vehicle: its hysteresis memory travels with the messages.
+``--steps N`` shows how a vehicle carries it: it sends N consecutive snapshots and feeds the
+``memory`` of each decision into the next request. Between two snapshots the scene is moved
+on by one planner period with a deliberately trivial model (the SVs keep their speed, the ego
+follows the first step of its plan); a real vehicle sends what it perceives.
+
+Output (stdout, one JSON object per line):
+
+* a decision: ``{"step", "vehicle_id", "sequence", "layer", "action", "next_maneuver",
+  "plan", "memory", "solve_us", "queue_us"}``;
+* a rejection: ``{"step", "vehicle_id", "sequence", "rejected": {"reason", "field"}}``;
+* with ``--stats``, last: ``{"stats": {...}}``, the planner's statistics document.
+
+Exit code: 0 every request was decided, 2 a request was rejected (reason and field are also
+printed on stderr; no later snapshot is sent), 1 no decision otherwise (no planner, timeout,
+an answer this client cannot read, a bad command line or request file).
+
+Only dependency: eclipse-zenoh (see requirements.txt).
+"""
+
+import argparse
+import copy
+import json
+import sys
+import threading
+
+import zenoh
+
+PLAN_KEY = "hmdp/planner/plan"  # queryable of `planner serve` (protocol::names)
+STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
+PROTOCOL_VERSION = 1
+# The JSON form is chosen by the query's encoding; anything else is read as bincode.
+JSON_ENCODING = "application/json"
+
+# Planner period (deploy/planner.toml, timing.step_s): one snapshot per period in --steps.
+STEP_S = 0.4
+# A lane change takes about 3 s: the lateral speed of the trivial ego model in --steps.
+LANE_CHANGE_S = 3.0
+
+# A 3-lane road, the ego cruising at 25 m/s in lane 2 (wanting 28 m/s) and a slower SV 110 m
+# ahead in the same lane. The first decisions speed the ego up; a few periods later (with
+# --steps) the gap has shrunk below the trigger distance: the SV enters corrective mode and
+# its frozen thresholds appear in the memory, which carries them from then on.
+EXAMPLE_REQUEST = {
+    "version": PROTOCOL_VERSION,
+    "vehicle_id": 7,
+    "sequence": 1,
+    "timestamp_ns": 1_000_000_000,
+    "road": {"lanes": 3, "lane_width_m": 3.5, "speed_limit_mps": 30.0},
+    "ego": {
+        "x_m": 0.0,
+        "y_m": 3.5,
+        "v_mps": 25.0,
+        "desired_speed_mps": 28.0,
+        "maneuver": {"lane": 2, "beta": 0},
+    },
+    "svs": [{"id": 1, "x_m": 110.0, "y_m": 3.5, "v_mps": 22.0, "a_mps2": 0.0}],
+    # First request: an empty memory (it may also be left out).
+    "memory": {"corrective": [], "previous_plan": []},
+}
+
+
+class NoAnswer(Exception):
+    """No usable answer from the planner (exit code 1)."""
+
+
+class BadInput(Exception):
+    """The request to send cannot be read (exit code 1; the planner was not asked)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """Exits 1 on a bad command line (argparse's 2 is this client's "rejected")."""
+
+    def error(self, message):
+        self.print_usage(sys.stderr)
+        self.exit(1, f"{self.prog}: error: {message}\n")
+
+
+def open_session(endpoint):
+    """A Zenoh client session that reaches the planner only through `endpoint`.
+
+    Multicast scouting is off, as on the planner: nothing is discovered, the endpoint is all.
+    """
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("client"))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as e:  # nothing listening there: a client session fails to open
+        raise NoAnswer(f"cannot connect to {endpoint}: {e}") from e
+
+
+def ask(session, request, timeout_s):
+    """Sends one PlanRequest (a dict) as JSON; returns the PlanResponse as a dict."""
+    replies = session.get(
+        PLAN_KEY,
+        payload=json.dumps(request).encode(),
+        encoding=zenoh.Encoding(JSON_ENCODING),
+        timeout=timeout_s,
+    )
+    # The planner sends exactly one reply; the loop ends at the first one or at the timeout.
+    for reply in replies:
+        if reply.ok is None:
+            # Zenoh itself answers "Timeout" when the query's timeout runs out.
+            error = reply.err.payload.to_string()
+            raise NoAnswer(f"no answer within {timeout_s} s" if error == "Timeout" else f"error reply: {error}")
+        try:
+            response = json.loads(reply.ok.payload.to_bytes())
+        except ValueError as e:  # not UTF-8 or not JSON: not the JSON form asked for
+            raise NoAnswer(f"unreadable answer: {e}") from e
+        # Another protocol version may be laid out differently: check it before anything else.
+        if response.get("version") != PROTOCOL_VERSION:
+            raise NoAnswer(f"response of protocol version {response.get('version')}, expected {PROTOCOL_VERSION}")
+        return response
+    raise NoAnswer(f"no answer within {timeout_s} s")
+
+
+def summary(step, response):
+    """The line printed for one response: the decision, or the rejection."""
+    head = {"step": step, "vehicle_id": response["vehicle_id"], "sequence": response["sequence"]}
+    outcome = response["outcome"]
+    if "rejected" in outcome:
+        return {**head, "rejected": outcome["rejected"]}
+    decided = outcome["decided"]
+    return {
+        **head,
+        "layer": decided["layer"],  # nominal, global_relaxation, fallback or watchdog_fallback
+        "action": decided["action"],  # first action of the plan
+        "next_maneuver": decided["next_maneuver"],  # the maneuver to command now
+        "plan": decided["plan"],
+        "memory": decided["memory"],  # to send back, unchanged, with the next request
+        "solve_us": response["solve_us"],
+        "queue_us": response["queue_us"],
+    }
+
+
+def lane_centre(road, lane):
+    """Lateral position of a lane centre; lane 1 is the leftmost (docs/protocol.md)."""
+    return (road["lanes"] - lane) * road["lane_width_m"]
+
+
+def next_request(request, decided):
+    """The snapshot one period later, carrying the memory `decided` returned.
+
+    Trivial scene model, enough for a plausible sequence: the SVs keep their speed; the ego
+    reaches the position and speed of the plan's first step and moves sideways towards the
+    centre of the lane it now heads for.
+    """
+    nxt = copy.deepcopy(request)
+    nxt["sequence"] += 1
+    nxt["timestamp_ns"] += int(STEP_S * 1e9)
+    ego = nxt["ego"]
+    # The ego does what the planner predicted for its first step (the planner's own model).
+    ego["x_m"] = decided["plan"][0]["x_m"]
+    ego["v_mps"] = decided["plan"][0]["v_mps"]
+    ego["maneuver"] = decided["next_maneuver"]
+    target_y = lane_centre(nxt["road"], ego["maneuver"]["lane"])
+    max_dy = nxt["road"]["lane_width_m"] * STEP_S / LANE_CHANGE_S
+    ego["y_m"] += max(-max_dy, min(max_dy, target_y - ego["y_m"]))
+    for sv in nxt["svs"]:
+        sv["x_m"] += sv["v_mps"] * STEP_S
+    # The hysteresis state: without it the planner would trigger and release corrective mode
+    # afresh every period.
+    nxt["memory"] = decided["memory"]
+    return nxt
+
+
+class StatsListener:
+    """Keeps the latest statistics document the planner published."""
+
+    def __init__(self, session):
+        self.latest = None
+        self.received = threading.Event()
+        self.subscriber = session.declare_subscriber(STATS_KEY, self._on_sample)
+
+    def _on_sample(self, sample):
+        self.latest = json.loads(sample.payload.to_bytes())
+        self.received.set()
+
+    def wait(self, timeout_s):
+        """The latest document; waits up to `timeout_s` for a first one."""
+        self.received.wait(timeout_s)
+        return self.latest
+
+
+def load_request(path):
+    if path is None:
+        return copy.deepcopy(EXAMPLE_REQUEST)
+    try:
+        with open(path, encoding="utf-8") as f:
+            request = json.load(f)
+    except (OSError, ValueError) as e:
+        raise BadInput(f"cannot read {path}: {e}") from e
+    if not isinstance(request, dict):
+        raise BadInput(f"{path}: a PlanRequest is a JSON object")
+    # Both may be omitted in the JSON form; --steps needs the memory field to carry it.
+    request.setdefault("memory", {"corrective": [], "previous_plan": []})
+    return request
+
+
+def run(args):
+    request = load_request(args.request)
+    session = open_session(args.connect)
+    try:
+        stats = StatsListener(session) if args.stats else None
+        code = 0
+        for step in range(1, args.steps + 1):
+            response = ask(session, request, args.timeout)
+            line = summary(step, response)
+            print(json.dumps(line, indent=2 if args.pretty else None), flush=True)
+            if "rejected" in line:
+                r = line["rejected"]
+                print(f"rejected: {r['reason']} (field: {r['field'] or '-'})", file=sys.stderr)
+                code = 2
+                break
+            request = next_request(request, response["outcome"]["decided"])
+        if stats is not None:
+            # Published every second: at most a little over a second to wait.
+            document = stats.wait(2.0)
+            if document is None:
+                print("no statistics received", file=sys.stderr)
+            else:
+                print(json.dumps({"stats": document}, indent=2 if args.pretty else None), flush=True)
+        return code
+    finally:
+        session.close()
+
+
+def main(argv=None):
+    parser = ArgumentParser(description="Ask the HMDP planner for a decision over Zenoh (JSON).")
+    parser.add_argument("--connect", default="tcp/127.0.0.1:7447", help="planner endpoint (tcp/HOST:PORT)")
+    parser.add_argument("--request", metavar="FILE.json", help="PlanRequest to send (default: built-in example)")
+    parser.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for each answer")
+    parser.add_argument("--steps", type=int, default=1, help="consecutive snapshots, carrying the memory")
+    parser.add_argument("--stats", action="store_true", help="also print the planner's statistics")
+    parser.add_argument("--pretty", action="store_true", help="indent the JSON output")
+    parser.add_argument(
+        "--print-example", action="store_true", help="print the built-in snapshot (a template for --request) and exit"
+    )
+    args = parser.parse_args(argv)
+    if args.print_example:
+        print(json.dumps(EXAMPLE_REQUEST, indent=2))
+        return 0
+    if args.steps < 1:
+        parser.error("--steps must be at least 1")
+    try:
+        return run(args)
+    except (NoAnswer, BadInput) as e:
+        print(f"no decision: {e}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
