@@ -350,6 +350,9 @@ fn run_load_command(mut args: LoadArgs, default_duration: std::time::Duration, s
     drop(planner);
     print_load_report(&report);
     if let Some(path) = &args.json {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+        }
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", path.display()))?;
         println!("  wrote {}", path.display());

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use protocol::containers::Vector as _;
 use protocol::{
     decode_bincode, decode_json_str, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason,
     ENCODING_BINCODE, ZENOH_PLAN_KEY,
@@ -380,4 +381,102 @@ fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
         std::thread::sleep(Duration::from_millis(100));
         sequence += 1;
     }
+}
+
+#[test]
+fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
+    let planner = Planner::start("faults", &[]);
+    let endpoint = planner.endpoint.clone();
+    drop(Client::connect(&planner));
+    // A well-behaved vehicle asks all along.
+    let survivor = std::thread::spawn(move || {
+        let client = Client::connect_to(&endpoint, &String::new);
+        for sequence in 1..=40u64 {
+            let bytes = encode_bincode(&request(77, sequence));
+            let replies = client.ask_raw(&bytes, Encoding::from(ENCODING_BINCODE), Duration::from_secs(5));
+            assert_eq!(replies.len(), 1, "survivor sequence {sequence}: one answer");
+            let r: PlanResponse = decode_bincode(&replies[0]).unwrap();
+            assert_eq!((r.vehicle_id, r.sequence), (77, sequence));
+            let layer = r.outcome.as_decided().expect("decided").layer().unwrap();
+            assert_ne!(layer, Layer::WatchdogFallback);
+        }
+    });
+    let client = Client::connect(&planner);
+    let one = |bytes: &[u8]| -> PlanResponse {
+        let replies = client.ask_raw(bytes, Encoding::from(ENCODING_BINCODE), Duration::from_secs(5));
+        assert_eq!(replies.len(), 1, "one answer to {} bytes", bytes.len());
+        decode_bincode(&replies[0]).unwrap()
+    };
+    // Every truncation of a valid message.
+    let valid = encode_bincode(&request(9, 1));
+    for len in 0..valid.len() {
+        let r = one(&valid[..len]);
+        assert_eq!(rejection(&r), RejectReason::Malformed, "truncated to {len} bytes");
+    }
+    // More SVs than the capacity (17 > 16): the list length is patched in place.
+    let mut full = request(9, 2);
+    let sv = *full.svs.first().unwrap();
+    while full.svs.len() < protocol::MAX_SVS {
+        let mut extra = sv;
+        extra.id = full.svs.len() as u32 + 1;
+        extra.x_m += 10.0 * f64::from(extra.id);
+        full.svs.push(extra).unwrap();
+    }
+    let mut bytes = encode_bincode(&full);
+    const SVS_LENGTH_OFFSET: usize = 81; // docs/protocol.md: the `svs` length, u64 LE
+    const SV_SIZE: usize = 36;
+    assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 16u64.to_le_bytes());
+    bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&17u64.to_le_bytes());
+    let end_of_svs = SVS_LENGTH_OFFSET + 8 + 16 * SV_SIZE;
+    let copy: Vec<u8> = bytes[end_of_svs - SV_SIZE..end_of_svs].to_vec();
+    bytes.splice(end_of_svs..end_of_svs, copy);
+    let r = one(&bytes);
+    assert_eq!(rejection(&r), RejectReason::CapacityExceeded);
+    assert_eq!(
+        (r.vehicle_id, r.sequence),
+        (9, 2),
+        "ids read from the undecodable message"
+    );
+    // NaN and an out-of-range lane in otherwise valid messages.
+    let mut nan = request(9, 3);
+    nan.svs[0].v_mps = f64::NAN;
+    assert_eq!(rejection(&one(&encode_bincode(&nan))), RejectReason::NonFinite);
+    let mut lane = request(9, 4);
+    lane.ego.maneuver.lane = 0;
+    assert_eq!(rejection(&one(&encode_bincode(&lane))), RejectReason::LaneOutOfRange);
+    survivor.join().expect("the well-behaved vehicle was served throughout");
+}
+
+#[test]
+fn a_vehicle_killed_mid_query_does_not_disturb_the_others() {
+    let planner = Planner::start("vkill", &["--inject-solve-delay-ms", "150"]);
+    let client = Client::connect(&planner);
+    let out = scratch_dir("vkill-out");
+    let mut victim = Command::new(binary("sim_client"))
+        .args([
+            "case1",
+            "--transport",
+            "zenoh",
+            "--zenoh-connect",
+            &planner.endpoint,
+            "--out",
+        ])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(victim.try_wait().unwrap().is_none(), "the victim ended early");
+    victim.kill().unwrap();
+    victim.wait().unwrap();
+    for sequence in 1..=10 {
+        let (r, _) = client.ask(&request(8, sequence));
+        assert_eq!((r.vehicle_id, r.sequence), (8, sequence));
+        assert_ne!(
+            r.outcome.as_decided().expect("decided").layer().unwrap(),
+            Layer::WatchdogFallback
+        );
+    }
+    assert!(!planner.log().contains("panicked"), "{}", planner.log());
 }
