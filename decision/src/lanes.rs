@@ -48,7 +48,8 @@ fn lane_position(road: &Road, y: f64) -> f64 {
 /// (more than half a lane beyond the outermost centres).
 pub fn nearest_lane(road: &Road, y: f64) -> Result<u8, i64> {
     let pos = lane_position(road, y);
-    let nearest = pos.round() as i64 + 1;
+    // Saturating: a coordinate far off the road must give an error, not an overflow.
+    let nearest = (pos.round() as i64).saturating_add(1);
     if pos < -0.5 || pos > f64::from(road.lanes) - 0.5 {
         return Err(nearest);
     }
@@ -63,8 +64,8 @@ pub fn lanes_at(road: &Road, y: f64, tolerance: f64) -> Result<LaneSet, i64> {
         return Ok(LaneSet::single(nearest));
     }
     let pos = lane_position(road, y);
-    let lo = (pos.floor() as i64 + 1).clamp(1, i64::from(road.lanes)) as u8;
-    let hi = (pos.ceil() as i64 + 1).clamp(1, i64::from(road.lanes)) as u8;
+    let lo = (pos.floor() as i64).saturating_add(1).clamp(1, i64::from(road.lanes)) as u8;
+    let hi = (pos.ceil() as i64).saturating_add(1).clamp(1, i64::from(road.lanes)) as u8;
     Ok(LaneSet::single(lo).with(hi))
 }
 

@@ -175,9 +175,12 @@ pub(crate) fn fallback_decision(
         lane: fallback::lateral_target(config, situation, &choice),
         beta: choice.beta,
     };
+    // The fallback may go from accelerating straight to braking (an emergency does not wait a
+    // step in cruise); the action, a change in -1..=1, then says "decelerate" and the next
+    // maneuver carries the braking.
     let first = Action {
         lateral: (i16::from(next.lane) - i16::from(start.lane)).signum() as i8,
-        longitudinal: choice.beta - start.beta,
+        longitudinal: (choice.beta - start.beta).clamp(-1, 1),
     };
     let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);
     let mut occupancy = problem.occupancy0;

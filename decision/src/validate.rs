@@ -11,6 +11,8 @@ use crate::types::Situation;
 const MAX_POSITION_M: f64 = 1.0e7;
 const MAX_SPEED_MPS: f64 = 150.0;
 const MAX_ACCEL_MPS2: f64 = 100.0;
+/// Narrower lanes are not a road; the bound also keeps lane arithmetic far from overflow.
+const MIN_LANE_WIDTH_M: f64 = 1.0;
 const MAX_LANE_WIDTH_M: f64 = 20.0;
 
 fn within(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), InputError> {
@@ -49,7 +51,7 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
     within(
         "road.lane_width_m",
         road.lane_width_m,
-        f64::MIN_POSITIVE,
+        MIN_LANE_WIDTH_M,
         MAX_LANE_WIDTH_M,
     )?;
     speed("road.speed_limit_mps", road.speed_limit_mps)?;

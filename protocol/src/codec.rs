@@ -54,11 +54,14 @@ impl WireError {
         }
     }
 
-    /// Classifies a serde error message (ours or serde's own wording).
+    /// Classifies a serde error message (ours or serde's own wording) by how it starts: the
+    /// rest may quote the input, which must not pick the error.
     fn from_message(msg: String) -> Self {
-        if msg.contains(CAPACITY_MARK) {
+        if msg.starts_with(CAPACITY_MARK) {
             WireError::CapacityExceeded(msg)
-        } else if msg.contains("unknown variant") || msg.contains("variant index") {
+        } else if msg.starts_with("unknown variant")
+            || (msg.starts_with("invalid value: integer") && msg.contains("expected variant index"))
+        {
             WireError::UnknownEnumValue(msg)
         } else {
             WireError::Malformed(msg)
@@ -149,6 +152,10 @@ pub fn decode_json<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
         return Err(WireError::TrailingBytes {
             extra: rest.len() - rest.iter().take_while(|b| b.is_ascii_whitespace()).count(),
         });
+    }
+    // serde would also take a struct as a positional array, which skips the version check.
+    if !value.is_object() {
+        return Err(WireError::Malformed("a message is a JSON object".into()));
     }
     match value.get("version").map(serde_json::Value::as_u64) {
         Some(Some(v)) if v != u64::from(PROTOCOL_VERSION) => {

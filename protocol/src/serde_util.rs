@@ -13,9 +13,10 @@ use iceoryx2_bb_container::vector::{StaticVec, Vector};
 use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-/// Every capacity error message contains this phrase; [`crate::codec`] maps it to
-/// [`crate::WireError::CapacityExceeded`].
-pub(crate) const CAPACITY_MARK: &str = "exceeds the capacity";
+/// Every capacity error message starts with this phrase; [`crate::codec`] maps it to
+/// [`crate::WireError::CapacityExceeded`]. A prefix, not a substring: a message may quote the
+/// sender's input (an unknown field's name), which must not choose the error.
+pub(crate) const CAPACITY_MARK: &str = "capacity exceeded:";
 
 /// `StaticVec<T, N>` as a sequence of its live elements; more than `N` is an error.
 pub(crate) mod bounded_vec {
@@ -48,7 +49,7 @@ pub(crate) mod bounded_vec {
             if let Some(len) = seq.size_hint() {
                 if len > N {
                     return Err(de::Error::custom(format_args!(
-                        "a list of {len} elements {CAPACITY_MARK} of {N}"
+                        "{CAPACITY_MARK} a list of {len} elements, at most {N}"
                     )));
                 }
             }
@@ -56,7 +57,7 @@ pub(crate) mod bounded_vec {
             while let Some(element) = seq.next_element()? {
                 if out.push(element).is_err() {
                     return Err(de::Error::custom(format_args!(
-                        "a list of more than {N} elements {CAPACITY_MARK} of {N}"
+                        "{CAPACITY_MARK} a list of more than {N} elements"
                     )));
                 }
             }
@@ -92,7 +93,7 @@ pub(crate) mod bounded_str {
         fn visit_str<E: de::Error>(self, v: &str) -> Result<Self::Value, E> {
             if v.len() > N {
                 return Err(E::custom(format_args!(
-                    "a string of {} bytes {CAPACITY_MARK} of {N}",
+                    "{CAPACITY_MARK} a string of {} bytes, at most {N}",
                     v.len()
                 )));
             }
