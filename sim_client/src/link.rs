@@ -129,18 +129,23 @@ impl Transport {
         match self {
             Transport::InProcess => Ok(Box::new(InProcess::new(config)?)),
             _ => {
-                let channel = self.open_channel(&options)?;
+                let channel = self.open_channel(&config, &options)?;
                 Ok(Box::new(RemoteLink::new(channel, config, options)))
             }
         }
     }
 
-    /// The raw request/answer channel of a remote transport (none for `inproc`).
-    pub fn open_channel(&self, options: &LinkOptions) -> Result<Box<dyn PlanChannel>, LinkError> {
+    /// The request/answer channel of the transport; for `inproc` a planner with `config` in
+    /// this thread, answering through the same message conversions as the service.
+    pub fn open_channel(
+        &self,
+        config: &PlannerConfig,
+        options: &LinkOptions,
+    ) -> Result<Box<dyn PlanChannel>, LinkError> {
         match self {
-            Transport::InProcess => Err(LinkError::Transport(
-                "the in-process transport has no request channel".into(),
-            )),
+            Transport::InProcess => Ok(Box::new(InProcessChannel {
+                planner: Planner::new(config.clone())?,
+            })),
             Transport::Zenoh(target) => Ok(Box::new(ZenohChannel::connect(target, options)?)),
             Transport::Iceoryx2 { prefix } => Ok(Box::new(Iceoryx2Channel::connect(prefix.clone(), options)?)),
         }
@@ -159,6 +164,9 @@ pub struct LinkOptions {
     pub transport_margin: Duration,
     /// How long connecting waits for the planner to answer.
     pub ready_timeout: Duration,
+    /// How long after the deadline a channel still listens for a (late) answer before the
+    /// request counts as lost (Zenoh's query timeout is `deadline + answer_grace`).
+    pub answer_grace: Duration,
     /// Sender id put in the requests.
     pub vehicle_id: u64,
 }
@@ -169,6 +177,7 @@ impl Default for LinkOptions {
             deadline: protocol::DEFAULT_DEADLINE,
             transport_margin: Duration::from_millis(20),
             ready_timeout: Duration::from_secs(30),
+            answer_grace: Duration::from_secs(1),
             vehicle_id: u64::from(std::process::id()),
         }
     }
@@ -179,6 +188,8 @@ impl Default for LinkOptions {
 pub struct Answer {
     /// The first valid answer that arrived in time.
     pub response: Option<PlanResponse>,
+    /// When it arrived (a channel may wait longer, to count duplicates).
+    pub answered_at: Option<Instant>,
     /// Answers beyond the first (0 with a correct planner: one request, one answer).
     pub extra_responses: usize,
 }
@@ -250,7 +261,7 @@ impl ZenohChannel {
         };
         let querier = session
             .declare_querier(protocol::ZENOH_PLAN_KEY)
-            .timeout(options.deadline)
+            .timeout(options.deadline + options.answer_grace)
             .consolidation(zenoh::query::ConsolidationMode::None)
             .wait()
             .map_err(|e| LinkError::Transport(format!("declaring the querier: {e}")))?;
@@ -286,7 +297,10 @@ impl ZenohChannel {
         while let Ok(Some(reply)) = replies.recv_deadline(deadline) {
             let Ok(sample) = reply.result() else { continue };
             match protocol::decode_bincode::<PlanResponse>(&sample.payload().to_bytes()) {
-                Ok(response) if answer.response.is_none() => answer.response = Some(response),
+                Ok(response) if answer.response.is_none() => {
+                    answer.response = Some(response);
+                    answer.answered_at = Some(Instant::now());
+                }
                 Ok(_) => answer.extra_responses += 1,
                 Err(e) => tracing::warn!("undecodable answer: {e}"),
             }
@@ -310,6 +324,40 @@ impl PlanChannel for ZenohChannel {
 
     fn name(&self) -> &'static str {
         "zenoh"
+    }
+}
+
+/// Requests answered by a planner in this thread: the baseline a transport's share is measured
+/// against (validation and message conversions included, as in the service).
+pub struct InProcessChannel {
+    planner: Planner,
+}
+
+impl PlanChannel for InProcessChannel {
+    fn exchange(&mut self, request: PlanRequest, _wait: Duration) -> Result<Answer, LinkError> {
+        let started = Instant::now();
+        let response = match request.validate() {
+            Err(rejected) => PlanResponse::rejected(request.vehicle_id, request.sequence, rejected, 0),
+            Ok(()) => match self.planner.decide(&request.to_situation()) {
+                Ok(decision) => PlanResponse::from_decision(&request, &decision, 0)
+                    .map_err(|e| LinkError::Transport(format!("encoding the decision: {e}")))?,
+                Err(e) => PlanResponse::rejected(
+                    request.vehicle_id,
+                    request.sequence,
+                    protocol::Rejected::from(&e),
+                    u32::try_from(started.elapsed().as_micros()).unwrap_or(u32::MAX),
+                ),
+            },
+        };
+        Ok(Answer {
+            response: Some(response),
+            answered_at: Some(Instant::now()),
+            extra_responses: 0,
+        })
+    }
+
+    fn name(&self) -> &'static str {
+        "inproc"
     }
 }
 
@@ -340,6 +388,7 @@ impl PlanChannel for Iceoryx2Channel {
             .request(request, wait)
             .map_err(|e| LinkError::Transport(e.to_string()))?;
         Ok(Answer {
+            answered_at: exchange.response.as_ref().map(|_| Instant::now()),
             response: exchange.response,
             extra_responses: exchange.extra_responses,
         })

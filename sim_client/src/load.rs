@@ -24,7 +24,8 @@ use crate::link::{decision_from_response, LinkError, LinkOptions, PlanChannel, P
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct LoadSettings {
-    /// How the planner is reached (a remote transport).
+    /// How the planner is reached (`inproc` measures the planner and the message conversions
+    /// alone: the baseline of a transport's share).
     pub transport: Transport,
     /// Vehicle clients (threads of this process).
     pub clients: usize,
@@ -79,9 +80,6 @@ impl LoadSettings {
 
     fn validate(&self) -> Result<()> {
         let bad = |m: &str| Err(SimClientError::Config(m.into()));
-        if self.transport == Transport::InProcess {
-            return bad("the load test needs a remote transport (iceoryx2 or zenoh)");
-        }
         if self.clients == 0 {
             return bad("--clients must be at least 1");
         }
@@ -286,7 +284,7 @@ pub struct ProcessReport {
 /// The result of a load or soak run.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct LoadReport {
-    /// `iceoryx2` or `zenoh`.
+    /// `inproc`, `iceoryx2` or `zenoh`.
     pub transport: String,
     /// Vehicles.
     pub clients: usize,
@@ -539,7 +537,11 @@ impl PlannerLink for PacedLink<'_> {
                 tracing::warn!(vehicle = self.vehicle_id, "request failed: {e}");
                 Default::default()
             });
-        let round_trip = sent.elapsed();
+        // Until the first answer: a channel may go on listening for duplicates.
+        let round_trip = answer
+            .answered_at
+            .unwrap_or_else(Instant::now)
+            .saturating_duration_since(sent);
         let stats = &mut self.stats;
         stats.counts.sent += 1;
         stats.counts.duplicated += answer.extra_responses as u64;
@@ -557,7 +559,8 @@ impl PlannerLink for PacedLink<'_> {
         match answer.response {
             None => stats.counts.lost += 1,
             Some(response) => {
-                if (response.vehicle_id, response.sequence) != (self.vehicle_id, self.sequence) {
+                let matches = (response.vehicle_id, response.sequence) == (self.vehicle_id, self.sequence);
+                if !matches {
                     stats.counts.mismatched += 1;
                 }
                 if in_time {
@@ -584,7 +587,7 @@ impl PlannerLink for PacedLink<'_> {
                     _ => stats.by_layer.rejected += 1,
                 }
                 // A rejection or a late answer: the vehicle decides by itself.
-                if in_time {
+                if in_time && matches {
                     decision = decision_from_response(&self.settings.planner, &response).ok();
                 }
             }
@@ -619,9 +622,10 @@ fn run_vehicle(settings: &LoadSettings, index: usize, start: Instant, end: Insta
         deadline: settings.deadline,
         transport_margin: settings.transport_margin,
         ready_timeout: Duration::from_secs(60),
+        answer_grace: settings.grace,
         vehicle_id,
     };
-    let channel = settings.transport.open_channel(&options)?;
+    let channel = settings.transport.open_channel(&settings.planner, &options)?;
     // Spread the vehicles over the period, so that the load is even.
     let phase = Duration::from_secs_f64(index as f64 / (settings.clients as f64 * settings.rate_hz));
     let mut link = PacedLink {

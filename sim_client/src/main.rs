@@ -544,11 +544,13 @@ fn main() -> Result<()> {
             );
             print_files(&files);
         }
-        Command::Case2 { common, seed } => {
+        Command::Case2 { mut common, seed } => {
             if common.transport != Transport::InProcess {
                 // A planner process has one configuration; the ablation needs two.
                 anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
             }
+            // Refuses the remote-transport flags, which mean nothing in process.
+            let _none = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
             let case = cases::run_case2(&config, &common.transport, seed)?;
             let files = report::write_case2(&common.out, &case)?;

@@ -137,7 +137,7 @@ fn transport_flag_names_what_each_transport_needs() {
     let zenoh = "zenoh".parse::<Transport>().unwrap();
     assert_eq!(zenoh, Transport::Zenoh(ZenohTarget::default()));
     let e = zenoh
-        .open_channel(&LinkOptions::default())
+        .open_channel(&decision::PlannerConfig::default(), &LinkOptions::default())
         .err()
         .expect("no target")
         .to_string();
@@ -147,5 +147,9 @@ fn transport_flag_names_what_each_transport_needs() {
         e.contains("inproc") && e.contains("iceoryx2") && e.contains("zenoh"),
         "{e}"
     );
-    assert!(Transport::InProcess.open_channel(&LinkOptions::default()).is_err());
+    // In process, the channel is a planner in this thread.
+    let inproc = Transport::InProcess
+        .open_channel(&decision::PlannerConfig::default(), &LinkOptions::default())
+        .unwrap();
+    assert_eq!(inproc.name(), "inproc");
 }

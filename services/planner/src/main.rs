@@ -66,7 +66,7 @@ struct ServeArgs {
     #[arg(long)]
     workers: Option<usize>,
     /// Requests that may wait for a worker; beyond that the fallback answers at once
-    /// (default: 4 per worker).
+    /// (default: 32 per worker).
     #[arg(long)]
     queue_capacity: Option<usize>,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
@@ -75,7 +75,7 @@ struct ServeArgs {
 }
 
 fn serve(args: ServeArgs) -> Result<()> {
-    use planner::service::{Service, ServiceConfig};
+    use planner::service::{Service, ServiceConfig, QUEUE_PER_WORKER};
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     use std::time::Duration;
@@ -97,7 +97,7 @@ fn serve(args: ServeArgs) -> Result<()> {
     let mut config = ServiceConfig::default();
     if let Some(w) = args.workers {
         config.workers = w.max(1);
-        config.queue_capacity = 4 * config.workers;
+        config.queue_capacity = QUEUE_PER_WORKER * config.workers;
     }
     if let Some(q) = args.queue_capacity {
         config.queue_capacity = q.max(1);
@@ -150,47 +150,58 @@ fn serve(args: ServeArgs) -> Result<()> {
         drop(iceoryx2_done_tx);
         None
     };
+    // Runs until a signal, or until a front end stops by itself (which is an error: systemd
+    // then restarts the planner).
     let result = runtime.block_on(async {
+        let (shutdown_tx, shutdown_rx) = tokio::sync::oneshot::channel::<()>();
+        let mut zenoh_task = zenoh_config.map(|cfg| {
+            tokio::spawn(planner::zenoh_front::serve(Arc::clone(&service), cfg, async move {
+                let _ = shutdown_rx.await;
+            }))
+        });
         let iceoryx2_ended = async {
             match iceoryx2_done.await {
-                Ok(result) => Some(result),
+                Ok(result) => result,
                 // No iceoryx2 front: never ends by itself.
                 Err(_) => std::future::pending().await,
             }
         };
-        let (shutdown_tx, shutdown_rx) = tokio::sync::oneshot::channel::<()>();
-        let zenoh = async {
-            match zenoh_config {
-                Some(cfg) => {
-                    planner::zenoh_front::serve(Arc::clone(&service), cfg, async {
-                        let _ = shutdown_rx.await;
-                    })
-                    .await
-                }
-                None => Ok(()),
+        let zenoh_ended = async {
+            match zenoh_task.as_mut() {
+                Some(task) => task.await,
+                None => std::future::pending().await,
             }
         };
-        let stop = async {
-            let outcome = tokio::select! {
-                _ = termination_signal() => None,
-                ended = iceoryx2_ended => ended,
-            };
-            let _ = shutdown_tx.send(());
-            outcome
+        let outcome = tokio::select! {
+            _ = termination_signal() => Ok(()),
+            ended = iceoryx2_ended => match ended {
+                Ok(()) => Err(anyhow::anyhow!("the iceoryx2 front end stopped")),
+                Err(e) => Err(e.context("iceoryx2 front end")),
+            },
+            ended = zenoh_ended => match ended {
+                Ok(Ok(())) => Err(anyhow::anyhow!("the zenoh front end stopped")),
+                Ok(Err(e)) => Err(e.context("zenoh front end")),
+                Err(e) => Err(anyhow::anyhow!("the zenoh front end failed: {e}")),
+            },
         };
-        let (zenoh_result, iceoryx2_outcome) = tokio::join!(zenoh, stop);
-        zenoh_result?;
-        match iceoryx2_outcome {
-            Some(Err(e)) => Err(e.context("iceoryx2 front end")),
-            _ => Ok(()),
+        let _ = shutdown_tx.send(());
+        if let Some(task) = zenoh_task {
+            if !task.is_finished() {
+                let _ = task.await;
+            }
         }
+        outcome
     });
     stop_iceoryx2.store(true, Ordering::Relaxed);
     if let Some(t) = iceoryx2_thread {
         let _ = t.join();
     }
     drop(runtime);
-    let snapshot = service.stats().snapshot();
+    // Stop the workers first (they answer what is still queued), so that the final
+    // statistics count every answer.
+    let stats = service.stats();
+    drop(service);
+    let snapshot = stats.snapshot();
     tracing::info!(stats = %serde_json::to_string(&snapshot).unwrap_or_default(), "final statistics");
     result
 }

@@ -48,6 +48,12 @@ impl WireFormat {
     }
 }
 
+/// Default queue places per worker. Solves take about a millisecond (p99 ~2 ms), so a full
+/// queue still drains well inside the 400 ms deadline, while bursts of simultaneous requests
+/// (many vehicles, Zenoh delivering in batches) are solved instead of answered by the
+/// overload fallback. A request that waits too long still gets the watchdog's answer on time.
+pub const QUEUE_PER_WORKER: usize = 32;
+
 /// Settings of the service core.
 #[derive(Debug, Clone)]
 pub struct ServiceConfig {
@@ -66,7 +72,7 @@ impl Default for ServiceConfig {
         let workers = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
         Self {
             workers,
-            queue_capacity: 4 * workers,
+            queue_capacity: QUEUE_PER_WORKER * workers,
             max_deadline: DEFAULT_DEADLINE,
             inject_solve_delay: Duration::ZERO,
         }
