@@ -51,7 +51,8 @@ fn check_soak(transport_args: &[&str], tag: &str) {
     let seconds = soak_seconds();
     let dir = scratch_dir(tag);
     let duration = format!("{seconds}s");
-    let warmup = format!("{}s", seconds / 3);
+    // Half the run: Zenoh and the allocator settle within the first tens of seconds.
+    let warmup = format!("{}s", seconds / 2);
     let mut args = vec![
         "soak",
         "--clients",
