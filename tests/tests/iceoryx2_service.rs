@@ -306,3 +306,61 @@ fn a_vehicle_killed_mid_request_does_not_disturb_the_others() {
     drop(connect(&prefix, "vkill-newcomer"));
     assert_eq!(iceoryx2_transport::dead_nodes(&iceoryx2_config(&prefix)), 0);
 }
+
+#[test]
+fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
+    use zenoh::Wait;
+    let _files = Iceoryx2Prefix::new("both");
+    let prefix = _files.as_str().to_string();
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut planner = start_planner(&prefix, "both-planner", &["--zenoh-listen", &endpoint]);
+    let mut shm = connect(&prefix, "both-vehicle");
+    wait_until_serving(&mut shm, &planner);
+    let json = serde_json::json!({
+        "mode": "client",
+        "connect": { "endpoints": [endpoint] },
+        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
+    });
+    let session = zenoh::open(zenoh::Config::from_json5(&json.to_string()).unwrap())
+        .wait()
+        .expect("a zenoh session to the planner");
+    let over_zenoh = |sequence: u64| -> PlanResponse {
+        let replies = session
+            .get(protocol::ZENOH_PLAN_KEY)
+            .payload(protocol::encode_bincode(&request(2, sequence)))
+            .encoding(zenoh::bytes::Encoding::from(protocol::ENCODING_BINCODE))
+            .timeout(Duration::from_secs(5))
+            .wait()
+            .unwrap();
+        let reply = replies.recv().expect("a zenoh answer");
+        protocol::decode_bincode(&reply.result().expect("an ok reply").payload().to_bytes()).unwrap()
+    };
+    for sequence in 1..=5 {
+        let a = answered(
+            shm.request(request(1, sequence), Duration::from_secs(5)).unwrap(),
+            1,
+            sequence,
+        );
+        let b = over_zenoh(sequence);
+        assert_eq!((b.vehicle_id, b.sequence), (2, sequence));
+        // The same snapshot gets the same decision whichever way it came.
+        assert_eq!(a.outcome.as_decided(), b.outcome.as_decided());
+    }
+    drop(session);
+    drop(shm);
+    assert!(planner.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()));
+    // Both front ends fed one service: its final statistics count every answer (the probe too).
+    let log = planner.log();
+    let stats = log
+        .lines()
+        .find(|l| l.contains("final statistics"))
+        .and_then(|l| l.split("stats=").nth(1))
+        .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
+    let stats: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
+    let answered = stats["answered"].as_u64().unwrap();
+    assert!(answered >= 10, "answered {answered}: {stats}");
+}
