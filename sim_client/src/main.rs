@@ -55,7 +55,22 @@ struct Common {
 }
 
 /// A `planner serve` child process, stopped when dropped (also on error or panic).
-struct PlannerChild(std::process::Child);
+struct PlannerChild(std::process::Child, Option<String>);
+
+impl PlannerChild {
+    /// Removes what iceoryx2 keeps under a prefix of our own after its last node is gone (a
+    /// small management segment per prefix).
+    fn remove_prefix_files(&self) {
+        let Some(prefix) = &self.1 else { return };
+        if let Ok(entries) = std::fs::read_dir("/dev/shm") {
+            for entry in entries.flatten() {
+                if entry.file_name().to_string_lossy().starts_with(prefix.as_str()) {
+                    let _ = std::fs::remove_file(entry.path());
+                }
+            }
+        }
+    }
+}
 
 impl Drop for PlannerChild {
     fn drop(&mut self) {
@@ -67,6 +82,7 @@ impl Drop for PlannerChild {
             let until = Instant::now() + std::time::Duration::from_secs(5);
             while Instant::now() < until {
                 if let Ok(Some(_)) = self.0.try_wait() {
+                    self.remove_prefix_files();
                     return;
                 }
                 std::thread::sleep(std::time::Duration::from_millis(20));
@@ -88,11 +104,24 @@ fn spawn_planner_with(common: &Common, transport_args: &[String], workers: Optio
     if let Some(p) = &common.planner_config {
         cmd.arg("--config").arg(p);
     }
+    // If this process dies without stopping it (a signal, SIGPIPE), the planner must not live
+    // on: the kernel sends it SIGTERM when its parent goes.
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
+        unsafe {
+            cmd.pre_exec(|| {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                Ok(())
+            });
+        }
+    }
     let child = cmd
         .stdin(std::process::Stdio::null())
         .spawn()
         .with_context(|| format!("starting {}", planner.display()))?;
-    Ok(PlannerChild(child))
+    Ok(PlannerChild(child, None))
 }
 
 /// Completes the transport from the command line, starting the planner if asked to.
@@ -145,11 +174,16 @@ fn prepare_transport_with(common: &mut Common, workers: Option<usize>) -> Result
             let child = if common.spawn_planner {
                 // A prefix of its own, so that it cannot meet another planner on this machine.
                 let p = prefix.get_or_insert_with(|| format!("hmdp{}_", std::process::id()));
-                Some(spawn_planner_with(
+                let mut child = spawn_planner_with(
                     common,
                     &["--iceoryx2".into(), "--iceoryx2-prefix".into(), p.clone()],
                     workers,
-                )?)
+                )?;
+                // Only a prefix this run made up is ours to clean.
+                if common.iceoryx2_prefix.is_none() {
+                    child.1 = Some(p.clone());
+                }
+                Some(child)
             } else {
                 None
             };
