@@ -25,8 +25,8 @@ mod serde_util;
 mod validate;
 
 pub use codec::{
-    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty, WireError,
-    WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
+    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty,
+    request_over_capacity_field, WireError, WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
 };
 pub use enums::{Layer, RejectReason};
 pub use messages::{

@@ -504,3 +504,48 @@ fn json_array_form_is_not_a_request() {
     let array = array.replacen("[2,", "[1,", 1);
     assert_eq!(kind(&decode_json::<PlanRequest>(array.as_bytes())), Kind::Malformed);
 }
+
+/// A capacity rejection names the list: the count of each list is patched one past its
+/// capacity in the bytes (bincode, where the counts sit at the documented offsets) and in the
+/// JSON, and the field finder must name that list and no other.
+#[test]
+fn over_capacity_list_is_named() {
+    let full = full_request();
+    let bytes = encode_bincode(&full);
+    assert_eq!(request_over_capacity_field(&bytes, false), None);
+    assert_eq!(request_over_capacity_field(encode_json(&full).as_bytes(), true), None);
+    // Offsets of the three counts: the SV list at byte 81, then each list's elements.
+    let svs_at = 81;
+    let corrective_at = svs_at + 8 + MAX_SVS * 36;
+    let plan_at = corrective_at + 8 + MAX_CORRECTIVE * 20;
+    let lists = [
+        ("svs", svs_at, MAX_SVS),
+        ("memory.corrective", corrective_at, MAX_CORRECTIVE),
+        ("memory.previous_plan", plan_at, MAX_HORIZON),
+    ];
+    for (name, at, cap) in lists {
+        assert_eq!(
+            bytes[at..at + 8],
+            (cap as u64).to_le_bytes(),
+            "{name} count at byte {at}"
+        );
+        let mut patched = bytes.clone();
+        patched[at..at + 8].copy_from_slice(&(cap as u64 + 1).to_le_bytes());
+        assert!(matches!(
+            decode_bincode::<PlanRequest>(&patched),
+            Err(WireError::CapacityExceeded(_) | WireError::Truncated)
+        ));
+        assert_eq!(request_over_capacity_field(&patched, false), Some(name));
+        let mut json: serde_json::Value = serde_json::from_str(&encode_json(&full)).unwrap();
+        let pointer = format!("/{}", name.replace('.', "/"));
+        let list = json.pointer_mut(&pointer).and_then(|v| v.as_array_mut()).unwrap();
+        let first = list[0].clone();
+        list.push(first);
+        let text = json.to_string();
+        assert!(matches!(
+            decode_json::<PlanRequest>(text.as_bytes()),
+            Err(WireError::CapacityExceeded(_))
+        ));
+        assert_eq!(request_over_capacity_field(text.as_bytes(), true), Some(name));
+    }
+}

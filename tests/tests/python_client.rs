@@ -213,10 +213,14 @@ fn run_client(dir: &Path, args: &[&str]) -> ClientRun {
 fn oracle(planner: &mut Planner, request: &Value) -> Value {
     let rejected = |r: Rejected| json!({ "rejected": serde_json::to_value(r).unwrap() });
     let decoded: Result<PlanRequest, WireError> = decode_json_str(&request.to_string());
+    let text = request.to_string();
     let request = match decoded {
         Ok(r) => r,
-        // Undecodable JSON: the service's rejection carries no field.
-        Err(WireError::CapacityExceeded(_)) => return rejected(Rejected::new(RejectReason::CapacityExceeded, "")),
+        // Undecodable JSON: the service names the list that is over capacity.
+        Err(WireError::CapacityExceeded(_)) => {
+            let field = protocol::request_over_capacity_field(text.as_bytes(), true).unwrap_or("");
+            return rejected(Rejected::new(RejectReason::CapacityExceeded, field));
+        }
         Err(e) => panic!("the test sent a request the service cannot decode: {e}"),
     };
     if let Err(r) = request.validate() {
@@ -448,7 +452,7 @@ fn bad_snapshots_exit_2_with_the_reason() {
     let cases = [
         ("lane", off_road, "lane_out_of_range", "ego.maneuver.lane"),
         ("five-svs", snapshot(25.0, &five), "too_many_vehicles", "svs"),
-        ("seventeen-svs", snapshot(25.0, &seventeen), "capacity_exceeded", ""),
+        ("seventeen-svs", snapshot(25.0, &seventeen), "capacity_exceeded", "svs"),
     ];
     for (name, request, reason, field) in &cases {
         // Also with --steps: a rejection ends the sequence.

@@ -433,6 +433,11 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
     let r = one(&bytes);
     assert_eq!(rejection(&r), RejectReason::CapacityExceeded);
     assert_eq!(
+        r.outcome.as_rejected().unwrap().field(),
+        "svs",
+        "the rejection names the list"
+    );
+    assert_eq!(
         (r.vehicle_id, r.sequence),
         (9, 2),
         "ids read from the undecodable message"

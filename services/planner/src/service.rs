@@ -309,7 +309,10 @@ impl Service {
                 let (vehicle_id, sequence) = peek_ids(bytes, format);
                 let rejected = match &e {
                     WireError::UnsupportedVersion { .. } => Rejected::new(RejectReason::UnsupportedVersion, "version"),
-                    WireError::CapacityExceeded(_) => Rejected::new(RejectReason::CapacityExceeded, ""),
+                    WireError::CapacityExceeded(_) => Rejected::new(
+                        RejectReason::CapacityExceeded,
+                        protocol::request_over_capacity_field(bytes, format == WireFormat::Json).unwrap_or(""),
+                    ),
                     _ => Rejected::new(RejectReason::Malformed, ""),
                 };
                 tracing::debug!(error = %e, "undecodable request");
