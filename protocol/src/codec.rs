@@ -14,7 +14,7 @@ use thiserror::Error;
 use crate::messages::{PlanRequest, PlanResponse, PROTOCOL_VERSION};
 use crate::serde_util::CAPACITY_MARK;
 
-/// Upper bound on a bincode message, bytes; the largest valid message is far smaller.
+/// Upper bound on a message (bincode or JSON), bytes; the largest valid message is far smaller.
 pub const MAX_MESSAGE_BYTES: usize = 64 * 1024;
 
 /// The bincode configuration of the protocol.
@@ -139,6 +139,13 @@ pub fn encode_json_pretty<T: WireMessage>(message: &T) -> String {
 
 /// Decodes one JSON message from `bytes` (UTF-8); whitespace around it is allowed.
 pub fn decode_json<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
+    // Bounded like bincode: parsing builds a tree several times the input's size.
+    if bytes.len() > MAX_MESSAGE_BYTES {
+        return Err(WireError::Malformed(format!(
+            "{} bytes: a message is at most {MAX_MESSAGE_BYTES}",
+            bytes.len()
+        )));
+    }
     let mut stream = serde_json::Deserializer::from_slice(bytes).into_iter::<serde_json::Value>();
     let value = match stream.next() {
         None => return Err(WireError::Truncated),
@@ -180,6 +187,9 @@ pub fn request_over_capacity_field(bytes: &[u8], json: bool) -> Option<&'static 
         ("memory.previous_plan", MAX_HORIZON),
     ];
     if json {
+        if bytes.len() > MAX_MESSAGE_BYTES {
+            return None;
+        }
         let value: serde_json::Value = serde_json::from_slice(bytes).ok()?;
         return lists.into_iter().find_map(|(name, cap)| {
             let pointer = format!("/{}", name.replace('.', "/"));

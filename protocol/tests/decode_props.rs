@@ -549,3 +549,21 @@ fn over_capacity_list_is_named() {
         assert_eq!(request_over_capacity_field(text.as_bytes(), true), Some(name));
     }
 }
+
+/// JSON is bounded like bincode: an oversized document is refused before it is parsed.
+#[test]
+fn oversized_json_is_refused_unparsed() {
+    let mut json: serde_json::Value = serde_json::from_str(&encode_json(&example_request())).unwrap();
+    json["padding"] = "x".repeat(MAX_MESSAGE_BYTES).into();
+    let text = json.to_string();
+    match decode_json::<PlanRequest>(text.as_bytes()) {
+        Err(WireError::Malformed(m)) => assert!(m.contains("at most"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    // Just under the bound, the same document fails for what it is: an unknown field.
+    json["padding"] = "x".repeat(MAX_MESSAGE_BYTES / 2).into();
+    match decode_json::<PlanRequest>(json.to_string().as_bytes()) {
+        Err(WireError::Malformed(m)) => assert!(m.contains("unknown field"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+}

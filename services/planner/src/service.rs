@@ -388,6 +388,7 @@ fn peek_ids(bytes: &[u8], format: WireFormat) -> (u64, u64) {
             let seq = u64::from_le_bytes(bytes[10..18].try_into().unwrap_or([0; 8]));
             (id, seq)
         }
+        WireFormat::Json if bytes.len() > protocol::MAX_MESSAGE_BYTES => (0, 0),
         WireFormat::Json => match serde_json::from_slice::<serde_json::Value>(bytes) {
             Ok(v) => (
                 v.get("vehicle_id").and_then(|x| x.as_u64()).unwrap_or(0),
