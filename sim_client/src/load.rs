@@ -230,6 +230,23 @@ pub struct TimelinePoint {
     pub max_round_trip_us: u64,
 }
 
+/// Adds `from` interval by interval into `into` (same period, both starting at 0).
+fn add_timeline(into: &mut Vec<TimelinePoint>, from: &[TimelinePoint]) {
+    for (i, p) in from.iter().enumerate() {
+        if into.len() <= i {
+            into.push(TimelinePoint {
+                t_s: p.t_s,
+                ..Default::default()
+            });
+        }
+        let t = &mut into[i];
+        t.sent += p.sent;
+        t.in_time += p.in_time;
+        t.misses += p.misses;
+        t.max_round_trip_us = t.max_round_trip_us.max(p.max_round_trip_us);
+    }
+}
+
 /// The measurements of some vehicles (one process): mergeable.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct LoadPart {
@@ -336,19 +353,7 @@ impl LoadReport {
             p.solve.add_to(&mut s);
             p.transport.add_to(&mut tr);
             elapsed = elapsed.max(p.elapsed_s);
-            for (i, point) in p.timeline.iter().enumerate() {
-                if timeline.len() <= i {
-                    timeline.push(TimelinePoint {
-                        t_s: point.t_s,
-                        ..Default::default()
-                    });
-                }
-                let t = &mut timeline[i];
-                t.sent += point.sent;
-                t.in_time += point.in_time;
-                t.misses += point.misses;
-                t.max_round_trip_us = t.max_round_trip_us.max(point.max_round_trip_us);
-            }
+            add_timeline(&mut timeline, &p.timeline);
         }
         Self {
             transport: settings.transport.to_string(),
@@ -556,40 +561,37 @@ impl PlannerLink for PacedLink<'_> {
             live.duplicated
                 .fetch_add(answer.extra_responses as u64, Ordering::Relaxed);
         }
-        match answer.response {
-            None => stats.counts.lost += 1,
-            Some(response) => {
-                let matches = (response.vehicle_id, response.sequence) == (self.vehicle_id, self.sequence);
-                if !matches {
-                    stats.counts.mismatched += 1;
-                }
-                if in_time {
-                    stats.counts.in_time += 1;
-                } else {
-                    stats.counts.late += 1;
-                }
-                let rt_us = u64::try_from(round_trip.as_micros()).unwrap_or(u64::MAX).max(1);
-                let server_us = u64::from(response.queue_us) + u64::from(response.solve_us);
-                stats.round_trip.saturating_record(rt_us);
-                stats.queue.saturating_record(u64::from(response.queue_us).max(1));
-                stats.solve.saturating_record(u64::from(response.solve_us).max(1));
-                stats
-                    .transport
-                    .saturating_record(rt_us.saturating_sub(server_us).max(1));
-                match response.outcome.get() {
-                    Ok(OutcomeRef::Decided(d)) => match d.layer() {
-                        Ok(Layer::Nominal) => stats.by_layer.nominal += 1,
-                        Ok(Layer::GlobalRelaxation) => stats.by_layer.global_relaxation += 1,
-                        Ok(Layer::Fallback) => stats.by_layer.fallback += 1,
-                        Ok(Layer::WatchdogFallback) => stats.by_layer.watchdog_fallback += 1,
-                        Err(_) => stats.by_layer.rejected += 1,
-                    },
-                    _ => stats.by_layer.rejected += 1,
-                }
-                // A rejection or a late answer: the vehicle decides by itself.
-                if in_time && matches {
-                    decision = decision_from_response(&self.settings.planner, &response).ok();
-                }
+        match answer_kind {
+            AnswerKind::InTime => stats.counts.in_time += 1,
+            AnswerKind::Late => stats.counts.late += 1,
+            AnswerKind::Lost => stats.counts.lost += 1,
+        }
+        if let Some(response) = answer.response {
+            let matches = (response.vehicle_id, response.sequence) == (self.vehicle_id, self.sequence);
+            if !matches {
+                stats.counts.mismatched += 1;
+            }
+            let rt_us = u64::try_from(round_trip.as_micros()).unwrap_or(u64::MAX).max(1);
+            let server_us = u64::from(response.queue_us) + u64::from(response.solve_us);
+            stats.round_trip.saturating_record(rt_us);
+            stats.queue.saturating_record(u64::from(response.queue_us).max(1));
+            stats.solve.saturating_record(u64::from(response.solve_us).max(1));
+            stats
+                .transport
+                .saturating_record(rt_us.saturating_sub(server_us).max(1));
+            match response.outcome.get() {
+                Ok(OutcomeRef::Decided(d)) => match d.layer() {
+                    Ok(Layer::Nominal) => stats.by_layer.nominal += 1,
+                    Ok(Layer::GlobalRelaxation) => stats.by_layer.global_relaxation += 1,
+                    Ok(Layer::Fallback) => stats.by_layer.fallback += 1,
+                    Ok(Layer::WatchdogFallback) => stats.by_layer.watchdog_fallback += 1,
+                    Err(_) => stats.by_layer.rejected += 1,
+                },
+                _ => stats.by_layer.rejected += 1,
+            }
+            // A rejection or a late answer: the vehicle decides by itself.
+            if in_time && matches {
+                decision = decision_from_response(&self.settings.planner, &response).ok();
             }
         }
         let answered_in_time = in_time && decision.is_some();
@@ -690,19 +692,7 @@ pub fn run_part(settings: &LoadSettings, start: Instant) -> Result<LoadPart> {
             into.add(from)
                 .map_err(|e| SimClientError::Config(format!("histogram: {e}")))?;
         }
-        for (i, p) in v.timeline.iter().enumerate() {
-            if part.timeline.len() <= i {
-                part.timeline.push(TimelinePoint {
-                    t_s: p.t_s,
-                    ..Default::default()
-                });
-            }
-            let t = &mut part.timeline[i];
-            t.sent += p.sent;
-            t.in_time += p.in_time;
-            t.misses += p.misses;
-            t.max_round_trip_us = t.max_round_trip_us.max(p.max_round_trip_us);
-        }
+        add_timeline(&mut part.timeline, &v.timeline);
     }
     part.round_trip = HistogramData::of(&rt);
     part.queue = HistogramData::of(&q);

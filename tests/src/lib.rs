@@ -138,3 +138,75 @@ impl Drop for Iceoryx2Prefix {
         remove_under(&std::env::temp_dir().join("iceoryx2"), &self.0);
     }
 }
+
+/// A free TCP port on the loopback interface (the OS picks it; it is free when returned).
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port()
+}
+
+/// `planner serve` over Zenoh, listening on a loopback endpoint (multicast and gossip
+/// scouting off), with two workers; stopped when dropped.
+pub struct ZenohPlanner {
+    /// The process.
+    pub process: Process,
+    /// Its Zenoh endpoint, e.g. `tcp/127.0.0.1:41234`.
+    pub endpoint: String,
+}
+
+impl ZenohPlanner {
+    /// On a free port; `extra` goes to `planner serve`.
+    pub fn start(tag: &str, extra: &[&str]) -> Self {
+        Self::start_at(&format!("tcp/127.0.0.1:{}", free_port()), tag, extra)
+    }
+
+    /// On `endpoint` (e.g. to restart a planner where its clients expect it).
+    pub fn start_at(endpoint: &str, tag: &str, extra: &[&str]) -> Self {
+        let mut args = vec!["serve", "--zenoh-listen", endpoint, "--workers", "2"];
+        args.extend_from_slice(extra);
+        Self {
+            process: Process::start("planner", &args, tag),
+            endpoint: endpoint.to_string(),
+        }
+    }
+
+    /// What the planner logged so far.
+    pub fn log(&self) -> String {
+        self.process.log()
+    }
+}
+
+/// The worked example of docs/protocol.md (3 lanes, one SV 30 m ahead), as `vehicle_id`'s
+/// request number `sequence`.
+pub fn worked_example_request(vehicle_id: u64, sequence: u64) -> protocol::PlanRequest {
+    let mut r: protocol::PlanRequest = protocol::decode_json_str(
+        r#"{"version":1,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
+            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
+            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
+            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
+    )
+    .expect("the documented example decodes");
+    r.vehicle_id = vehicle_id;
+    r.sequence = sequence;
+    r
+}
+
+/// Runs `sim_client case1 --out <dir>/<name> <args>` and returns its `decisions.csv`;
+/// `planner_log` is shown if the run fails.
+pub fn case1_decisions(dir: &std::path::Path, name: &str, args: &[&str], planner_log: &dyn Fn() -> String) -> Vec<u8> {
+    let out = std::process::Command::new(binary("sim_client"))
+        .args(["case1", "--out"])
+        .arg(dir.join(name))
+        .args(args)
+        .output()
+        .expect("sim_client runs");
+    assert!(
+        out.status.success(),
+        "{name}: {}\nplanner log:\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        planner_log()
+    );
+    std::fs::read(dir.join(name).join("case1/decisions.csv")).expect("decisions.csv")
+}

@@ -8,8 +8,8 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2_transport::{Client, ClientOptions, Exchange};
-use protocol::{decode_json_str, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
-use system_tests::{binary, scratch_dir, Iceoryx2Prefix, Process};
+use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
+use system_tests::{case1_decisions, free_port, scratch_dir, worked_example_request, Iceoryx2Prefix, Process};
 
 /// How long a planner may take to start answering (a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
@@ -47,18 +47,8 @@ fn wait_until_serving(client: &mut Client, planner: &Process) {
     }
 }
 
-/// The worked example of docs/protocol.md (3 lanes, one SV ahead) as vehicle `id`.
 fn request(vehicle_id: u64, sequence: u64) -> PlanRequest {
-    let mut r: PlanRequest = decode_json_str(
-        r#"{"version":1,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
-            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
-            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
-            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
-    )
-    .unwrap();
-    r.vehicle_id = vehicle_id;
-    r.sequence = sequence;
-    r
+    worked_example_request(vehicle_id, sequence)
 }
 
 fn answered(exchange: Exchange, vehicle_id: u64, sequence: u64) -> PlanResponse {
@@ -89,21 +79,7 @@ fn case1_over_iceoryx2_matches_in_process_byte_for_byte() {
     let mut probe = connect(&prefix, "probe");
     wait_until_serving(&mut probe, &planner);
     let dir = scratch_dir("iceoryx2-case1");
-    let run = |name: &str, args: &[&str]| {
-        let out = std::process::Command::new(binary("sim_client"))
-            .args(["case1", "--out"])
-            .arg(dir.join(name))
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{name}: {}\nplanner log:\n{}",
-            String::from_utf8_lossy(&out.stderr),
-            planner.log()
-        );
-        std::fs::read(dir.join(name).join("case1/decisions.csv")).unwrap()
-    };
+    let run = |name: &str, args: &[&str]| case1_decisions(&dir, name, args, &|| planner.log());
     let inproc = run("inproc", &["--transport", "inproc"]);
     let shared = run("iceoryx2", &["--transport", "iceoryx2", "--iceoryx2-prefix", &prefix]);
     // The simulator starting its own planner under a prefix of its own.
@@ -312,11 +288,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     use zenoh::Wait;
     let _files = Iceoryx2Prefix::new("both");
     let prefix = _files.as_str().to_string();
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let mut planner = start_planner(&prefix, "both-planner", &["--zenoh-listen", &endpoint]);
     let mut shm = connect(&prefix, "both-vehicle");
     wait_until_serving(&mut shm, &planner);

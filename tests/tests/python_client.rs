@@ -11,13 +11,13 @@
 //! built (`cargo build -p planner`, or run under `cargo test --workspace`).
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use decision::{Planner, PlannerConfig};
 use protocol::{decode_json_str, Decided, PlanRequest, RejectReason, Rejected, WireError};
 use serde_json::{json, Value};
-use system_tests::binary;
+use system_tests::{free_port, ZenohPlanner};
 
 /// How long a planner may take to start answering (debug builds on a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
@@ -54,54 +54,28 @@ fn client_script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../clients/python/hmdp_client.py")
 }
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("a free port")
-        .port()
-}
-
 fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hmdp-python-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    system_tests::scratch_dir(&format!("python-{name}"))
 }
 
-/// A `planner serve` child, killed on drop.
+/// A `planner serve` over Zenoh and a scratch directory for the client's files.
 struct PlannerProcess {
-    child: Child,
-    endpoint: String,
-    log: PathBuf,
+    planner: ZenohPlanner,
     dir: PathBuf,
 }
 
 impl PlannerProcess {
     fn start(name: &str, extra: &[&str]) -> Self {
-        let dir = scratch_dir(name);
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-        let log = dir.join("planner.log");
-        let child = Command::new(binary("planner"))
-            .args(["serve", "--zenoh-listen", &endpoint, "--workers", "2"])
-            .args(extra)
-            .env("RUST_LOG", "info,zenoh=warn")
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&log).unwrap())
-            .spawn()
-            .expect("planner starts");
         let mut planner = Self {
-            child,
-            endpoint,
-            log,
-            dir,
+            planner: ZenohPlanner::start(&format!("python-{name}"), extra),
+            dir: scratch_dir(name),
         };
         planner.wait_ready();
         planner
     }
 
     fn log(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
+        self.planner.log()
     }
 
     /// Until the client gets a decision: the port listening is not enough, the queryable
@@ -109,12 +83,12 @@ impl PlannerProcess {
     fn wait_ready(&mut self) {
         let give_up = Instant::now() + STARTUP;
         loop {
-            let run = run_client(&self.dir, &["--connect", &self.endpoint]);
+            let run = run_client(&self.dir, &["--connect", &self.planner.endpoint]);
             if run.code == 0 {
                 return;
             }
-            if let Ok(Some(status)) = self.child.try_wait() {
-                panic!("planner exited ({status}) before serving\n{}", self.log());
+            if !self.planner.process.is_running() {
+                panic!("planner exited before serving\n{}", self.log());
             }
             assert!(
                 Instant::now() < give_up,
@@ -130,18 +104,11 @@ impl PlannerProcess {
     fn ask(&self, name: &str, request: &Value, extra: &[&str]) -> ClientRun {
         let file = self.dir.join(format!("{name}.json"));
         std::fs::write(&file, serde_json::to_string_pretty(request).unwrap()).unwrap();
-        let mut args = vec!["--connect", &self.endpoint, "--request", file.to_str().unwrap()];
+        let mut args = vec!["--connect", &self.planner.endpoint, "--request", file.to_str().unwrap()];
         args.extend_from_slice(extra);
         let run = run_client(&self.dir, &args);
         run.expect_parsed(&self.log());
         run
-    }
-}
-
-impl Drop for PlannerProcess {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -346,7 +313,7 @@ fn decisions_equal_the_in_process_planner() {
     let example = run_client(&planner.dir, &["--print-example"]);
     assert_eq!(example.code, 0, "{}", example.stderr);
     let example: Value = serde_json::from_str(&example.stdout).expect("the example is JSON");
-    let run = run_client(&planner.dir, &["--connect", &planner.endpoint, "--stats"]);
+    let run = run_client(&planner.dir, &["--connect", &planner.planner.endpoint, "--stats"]);
     run.expect_parsed(&planner.log());
     assert_eq!(run.code, 0, "{}", run.stderr);
     let lines = run.values();

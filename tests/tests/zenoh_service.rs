@@ -2,72 +2,22 @@
 //! concurrent vehicles, the watchdog, and rejections of bad bytes.
 //!
 //! Every test starts its own planner on its own free loopback port (multicast and gossip
-//! scouting off) and kills it when done, also on panic ([`Planner`] kills in `Drop`).
+//! scouting off) and stops it when done, also on panic (`ZenohPlanner` stops in `Drop`).
 
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use protocol::containers::Vector as _;
 use protocol::{
-    decode_bincode, decode_json_str, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason,
-    ENCODING_BINCODE, ZENOH_PLAN_KEY,
+    decode_bincode, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason, ENCODING_BINCODE,
+    ZENOH_PLAN_KEY,
 };
-use system_tests::binary;
+use system_tests::{binary, case1_decisions, scratch_dir, worked_example_request, ZenohPlanner as Planner};
 use zenoh::bytes::Encoding;
 use zenoh::Wait;
 
 /// How long a planner may take to start answering (debug builds on a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("a free port")
-        .port()
-}
-
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hmdp-zenoh-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// A `planner serve` child, killed on drop.
-struct Planner {
-    child: Child,
-    endpoint: String,
-    log: PathBuf,
-}
-
-impl Planner {
-    fn start(name: &str, extra: &[&str]) -> Self {
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-        let log = scratch_dir(name).join("planner.log");
-        let child = Command::new(binary("planner"))
-            .args(["serve", "--zenoh-listen", &endpoint, "--workers", "2"])
-            .args(extra)
-            .env("RUST_LOG", "info,zenoh=warn")
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&log).unwrap())
-            .spawn()
-            .expect("planner starts");
-        Self { child, endpoint, log }
-    }
-
-    fn log(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
-    }
-}
-
-impl Drop for Planner {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 /// A client session and a querier on the plan key.
 struct Client {
@@ -163,18 +113,8 @@ impl Client {
     }
 }
 
-/// The worked example of docs/protocol.md (3 lanes, one SV ahead) as vehicle `id`.
 fn request(vehicle_id: u64, sequence: u64) -> PlanRequest {
-    let mut r: PlanRequest = decode_json_str(
-        r#"{"version":1,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
-            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
-            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
-            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
-    )
-    .unwrap();
-    r.vehicle_id = vehicle_id;
-    r.sequence = sequence;
-    r
+    worked_example_request(vehicle_id, sequence)
 }
 
 fn rejection(response: &PlanResponse) -> RejectReason {
@@ -189,21 +129,7 @@ fn case1_over_zenoh_matches_in_process_byte_for_byte() {
     let planner = Planner::start("case1", &[]);
     drop(Client::connect(&planner)); // wait until it serves
     let dir = scratch_dir("case1-out");
-    let run = |name: &str, args: &[&str]| {
-        let out = Command::new(binary("sim_client"))
-            .args(["case1", "--out"])
-            .arg(dir.join(name))
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{name}: {}\nplanner log:\n{}",
-            String::from_utf8_lossy(&out.stderr),
-            planner.log()
-        );
-        std::fs::read(dir.join(name).join("case1/decisions.csv")).unwrap()
-    };
+    let run = |name: &str, args: &[&str]| case1_decisions(&dir, name, args, &|| planner.log());
     let inproc = run("inproc", &["--transport", "inproc"]);
     let zenoh = run("zenoh", &["--transport", "zenoh", "--zenoh-connect", &planner.endpoint]);
     assert!(!inproc.is_empty());
@@ -346,8 +272,7 @@ fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
         client.ask_raw(&encode_bincode(&request(6, sequence)), bincode(), wait)
     };
     assert_eq!(ask(1, Duration::from_secs(5)).len(), 1);
-    let _ = planner.child.kill();
-    let _ = planner.child.wait();
+    planner.process.kill();
     let wait = Duration::from_millis(300);
     for sequence in 2..=4 {
         let sent = Instant::now();
@@ -359,14 +284,7 @@ fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
         );
     }
     // The same endpoint again: the client session reconnects by itself.
-    let restarted = Command::new(binary("planner"))
-        .args(["serve", "--zenoh-listen", &endpoint, "--workers", "2"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("planner restarts");
-    planner.child = restarted;
+    let restarted = Planner::start_at(&endpoint, "restart-2", &[]);
     let give_up = Instant::now() + STARTUP;
     let mut sequence = 5;
     loop {
@@ -377,7 +295,11 @@ fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
             assert_eq!(replies.len(), 1);
             break;
         }
-        assert!(Instant::now() < give_up, "no answer after the restart");
+        assert!(
+            Instant::now() < give_up,
+            "no answer after the restart\n{}",
+            restarted.log()
+        );
         std::thread::sleep(Duration::from_millis(100));
         sequence += 1;
     }
