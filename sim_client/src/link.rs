@@ -367,9 +367,10 @@ pub struct Iceoryx2Channel {
 }
 
 impl Iceoryx2Channel {
-    /// Opens the planner's iceoryx2 services under `prefix`, waiting up to
-    /// `options.ready_timeout` for a planner to create them.
+    /// Opens the planner's iceoryx2 services under `prefix` and waits (up to
+    /// `options.ready_timeout`) until a planner answers a probe.
     pub fn connect(prefix: Option<String>, options: &LinkOptions) -> Result<Self, LinkError> {
+        let give_up = Instant::now() + options.ready_timeout;
         let client_options = iceoryx2_transport::ClientOptions {
             prefix,
             ready_timeout: options.ready_timeout,
@@ -377,7 +378,29 @@ impl Iceoryx2Channel {
         };
         let client =
             iceoryx2_transport::Client::connect(&client_options).map_err(|e| LinkError::Transport(e.to_string()))?;
-        Ok(Self { client })
+        let mut channel = Self { client };
+        // The services can exist before the planner's server port does: an empty request
+        // (which comes back rejected) tells when it serves.
+        let probe = PlanRequest::new(
+            options.vehicle_id,
+            0,
+            0,
+            protocol::Road::default(),
+            protocol::EgoState::default(),
+        );
+        loop {
+            if channel
+                .exchange(probe.clone(), Duration::from_millis(500))?
+                .response
+                .is_some()
+            {
+                return Ok(channel);
+            }
+            if Instant::now() >= give_up {
+                return Err(LinkError::Transport("the planner over iceoryx2 does not answer".into()));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
     }
 }
 
