@@ -73,6 +73,9 @@ pub struct EgoModel {
     pub accel_mps2: f64,
     /// Allow a lateral and a longitudinal change in the same step (9 actions instead of 5).
     pub combined_actions: bool,
+    /// How long the vehicle takes for a one-lane change, s. The planner holds the origin lane
+    /// occupied for this long after a change begins (beyond the horizon at the defaults).
+    pub lane_change_s: f64,
 }
 
 impl Default for EgoModel {
@@ -81,6 +84,7 @@ impl Default for EgoModel {
             decel_mps2: -3.0,
             accel_mps2: 1.5,
             combined_actions: false,
+            lane_change_s: 3.0,
         }
     }
 }
@@ -152,7 +156,8 @@ pub struct Perception {
     pub range_ahead_m: f64,
     /// SVs farther behind than this are ignored, m.
     pub range_behind_m: f64,
-    /// More SVs than this in one request is an error.
+    /// The planner uses at most this many SVs of a request: the most relevant (nearest in
+    /// travel time). A request may carry up to `MAX_INPUT_SVS`.
     pub max_svs: usize,
     /// Roads with more lanes than this are rejected.
     pub max_lanes: u8,
@@ -386,6 +391,12 @@ impl PlannerConfig {
         }
         if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
             return bad("recovery.gamma", "must be in (0, 1)");
+        }
+        if !(e.lane_change_s.is_finite() && e.lane_change_s > 0.0) {
+            return bad("ego.lane_change_s", "must be positive");
+        }
+        if self.perception.max_svs == 0 || self.perception.max_svs > crate::MAX_INPUT_SVS {
+            return bad("perception.max_svs", "must be in 1..=MAX_INPUT_SVS");
         }
         if self.perception.max_lanes == 0 || self.perception.max_lanes > 16 {
             return bad("perception.max_lanes", "must be in 1..=16");

@@ -139,13 +139,7 @@ impl SituationGenerator {
             }
             placed.push((x, lane));
             let a = [-1.2, -0.1, 0.0, 0.0, 0.8][rng.random_range(0..5)];
-            svs.push(SvObservation {
-                id,
-                x_m: x,
-                y_m: y,
-                v_mps: v,
-                a_mps2: a,
-            });
+            svs.push(SvObservation::new(id, x, y, v, a));
             id += rng.random_range(1..4);
         }
         // Corrective memory for some SVs ahead in the ego's lane. In closed loop the trigger

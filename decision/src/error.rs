@@ -18,16 +18,19 @@ pub enum InputError {
     NegativeSpeed { field: &'static str, value: f64 },
     #[error("road must have 1..={max} lanes, got {lanes}")]
     LaneCount { lanes: u8, max: u8 },
-    #[error("{what} lane {lane} is outside 1..={lanes}")]
-    LaneOutOfRange { what: &'static str, lane: i64, lanes: u8 },
-    #[error("{what} longitudinal state {beta} is outside -1..=1")]
-    BetaOutOfRange { what: &'static str, beta: i8 },
+    /// `field` is the dotted path of the offending value (`ego.maneuver.lane`, `ego.y_m`,
+    /// `sv.y_m`): the wire reports it as is.
+    #[error("field `{field}`: lane {lane} is outside 1..={lanes}")]
+    LaneOutOfRange { field: &'static str, lane: i64, lanes: u8 },
+    #[error("field `{field}`: longitudinal state {beta} is outside -1..=1")]
+    BetaOutOfRange { field: &'static str, beta: i8 },
     #[error("SV id {id} appears more than once")]
     DuplicateSvId { id: u32 },
-    #[error("{count} SVs exceed the capacity of {capacity}")]
+    #[error("{count} SVs exceed the input capacity of {capacity}")]
     TooManyVehicles { count: usize, capacity: usize },
-    #[error("planner memory is invalid: {why}")]
-    InvalidMemory { why: &'static str },
+    /// `field` is `memory.corrective` or `memory.previous_plan`.
+    #[error("planner memory `{field}` is invalid: {why}")]
+    InvalidMemory { field: &'static str, why: &'static str },
 }
 
 /// A configuration that cannot be used.

@@ -150,13 +150,7 @@ mod tests {
     }
 
     fn sv(id: u32, x: f64, y: f64, v: f64) -> SvObservation {
-        SvObservation {
-            id,
-            x_m: x,
-            y_m: y,
-            v_mps: v,
-            a_mps2: 0.0,
-        }
+        SvObservation::new(id, x, y, v, 0.0)
     }
 
     #[test]

@@ -44,13 +44,18 @@ fn lane_position(road: &Road, y: f64) -> f64 {
     f64::from(road.lanes) - 1.0 - y / road.lane_width_m
 }
 
+/// How far beyond the road edge a vehicle centre may be reported and still count as on its
+/// outermost lane: a measurement, not an error (m).
+pub const ROAD_EDGE_TOLERANCE_M: f64 = 1.0;
+
 /// The lane whose centre is nearest to `y`, or `Err(nearest index)` when `y` is off the road
-/// (more than half a lane beyond the outermost centres).
+/// (more than half a lane plus [`ROAD_EDGE_TOLERANCE_M`] beyond the outermost centres).
 pub fn nearest_lane(road: &Road, y: f64) -> Result<u8, i64> {
     let pos = lane_position(road, y);
     // Saturating: a coordinate far off the road must give an error, not an overflow.
     let nearest = (pos.round() as i64).saturating_add(1);
-    if pos < -0.5 || pos > f64::from(road.lanes) - 0.5 {
+    let edge = 0.5 + ROAD_EDGE_TOLERANCE_M / road.lane_width_m;
+    if pos < -edge || pos > f64::from(road.lanes) - 1.0 + edge {
         return Err(nearest);
     }
     Ok(nearest.clamp(1, i64::from(road.lanes)) as u8)
@@ -103,8 +108,11 @@ mod tests {
     #[test]
     fn off_road_is_an_error() {
         let r = road(2);
-        assert!(nearest_lane(&r, -2.5).is_err());
-        assert!(nearest_lane(&r, 6.5).is_err());
+        // Two lanes of 4 m: the road spans y in [-2, 6]; 1 m beyond an edge is tolerated.
+        assert!(nearest_lane(&r, -3.1).is_err());
+        assert!(nearest_lane(&r, 7.1).is_err());
+        assert_eq!(nearest_lane(&r, 6.9), Ok(1));
+        assert_eq!(nearest_lane(&r, -2.9), Ok(2));
         assert!(nearest_lane(&r, 5.9).is_ok());
     }
 

@@ -33,6 +33,7 @@ pub use error::{ConfigError, DecisionError, InputError, SolverError};
 pub use highs_solver::InterruptHandle;
 pub use planner::{fallback_only, Planner};
 pub use types::{
-    Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, Situation, SolveStats,
-    SvObservation, Threat,
+    Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, SetPoint, Situation,
+    SolveStats, SvObservation, Threat,
 };
+pub use validate::{MAX_INPUT_SVS, NEGATIVE_SPEED_TOLERANCE_MPS};

@@ -11,8 +11,8 @@ use crate::highs_solver::InterruptHandle;
 use crate::milp::MilpBackend;
 use crate::model::transition;
 use crate::problem::{prepare, Problem};
-use crate::types::{Action, Decision, Layer, Maneuver, PlanStep, Situation, SolveStats};
-use crate::validate::validate;
+use crate::types::{Action, Decision, Layer, Maneuver, PlanStep, SetPoint, Situation, SolveStats};
+use crate::validate::{normalised, validate};
 
 /// A planner: configuration plus, for the MILP backend, one long-lived HiGHS instance.
 /// It holds no decision state — the memory travels in `Situation` and `Decision` — but it
@@ -64,6 +64,7 @@ impl Planner {
     pub fn decide(&mut self, situation: &Situation) -> Result<Decision, DecisionError> {
         let started = Instant::now();
         validate(&self.config, situation)?;
+        let situation = &normalised(situation);
         let prepared = prepare(&self.config, situation);
         let problem = &prepared.problem;
         let mut stats = SolveStats {
@@ -100,6 +101,7 @@ impl Planner {
                 Decision {
                     action: plan[0].action,
                     next_maneuver: plan[0].maneuver,
+                    setpoint: setpoint_of(problem, &plan[0]),
                     plan,
                     layer,
                     stats,
@@ -159,6 +161,15 @@ impl Planner {
     }
 }
 
+/// The set-point of a plan's first step: the acceleration that takes the ego from its
+/// current speed to the step's speed in one period.
+fn setpoint_of(problem: &Problem, first: &PlanStep) -> SetPoint {
+    SetPoint {
+        accel_mps2: (first.v_mps - problem.v0) / problem.kin.dt,
+        target_speed_mps: first.v_mps,
+    }
+}
+
 /// Layer B's decision: keep the target lane, set `beta` from the most critical threat.
 pub(crate) fn fallback_decision(
     config: &PlannerConfig,
@@ -184,7 +195,7 @@ pub(crate) fn fallback_decision(
     };
     let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);
     let mut occupancy = problem.occupancy0;
-    let plan = (0..config.timing.horizon)
+    let plan: Vec<PlanStep> = (0..config.timing.horizon)
         .map(|h| {
             (x, v) = problem.kin.step(x, v, next.beta);
             v = v.clamp(0.0, problem.speed_cap);
@@ -202,6 +213,7 @@ pub(crate) fn fallback_decision(
     Decision {
         action: first,
         next_maneuver: next,
+        setpoint: setpoint_of(problem, &plan[0]),
         plan,
         layer: Layer::Fallback,
         stats,
@@ -214,6 +226,7 @@ pub(crate) fn fallback_decision(
 pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<Decision, DecisionError> {
     let started = Instant::now();
     validate(config, situation)?;
+    let situation = &normalised(situation);
     let prepared = prepare(config, situation);
     let stats = SolveStats {
         svs_considered: prepared.problem.svs.len(),

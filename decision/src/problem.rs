@@ -135,6 +135,12 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         dx <= config.perception.range_ahead_m && dx >= -config.perception.range_behind_m
     };
     let mut visible: Vec<&SvObservation> = s.svs.iter().filter(|sv| in_window(sv)).collect();
+    // The nearest `max_svs` are the relevant ones (ties by id, so the choice is deterministic).
+    visible.sort_by(|a, b| {
+        let (da, db) = ((a.x_m - ego.x_m).abs(), (b.x_m - ego.x_m).abs());
+        da.total_cmp(&db).then(a.id.cmp(&b.id))
+    });
+    visible.truncate(config.perception.max_svs);
     visible.sort_by_key(|sv| sv.id);
 
     let mut svs = Vec::with_capacity(visible.len());

@@ -56,7 +56,7 @@ pub struct EgoState {
     pub maneuver: Maneuver,
 }
 
-/// One perceived surrounding vehicle.
+/// One perceived surrounding vehicle. Positions are of the vehicle's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SvObservation {
     pub id: u32,
@@ -64,6 +64,31 @@ pub struct SvObservation {
     pub y_m: f64,
     pub v_mps: f64,
     pub a_mps2: f64,
+    /// Lateral velocity, m/s (positive = towards the left, increasing `y`). Lets the
+    /// prediction see a lane change before the SV has left its lane centre.
+    #[serde(default)]
+    pub vy_mps: f64,
+    /// Body length and width, m; `None`: the configured vehicle size.
+    #[serde(default)]
+    pub length_m: Option<f64>,
+    #[serde(default)]
+    pub width_m: Option<f64>,
+}
+
+impl SvObservation {
+    /// An SV of the configured size driving straight along its lane.
+    pub fn new(id: u32, x_m: f64, y_m: f64, v_mps: f64, a_mps2: f64) -> Self {
+        Self {
+            id,
+            x_m,
+            y_m,
+            v_mps,
+            a_mps2,
+            vy_mps: 0.0,
+            length_m: None,
+            width_m: None,
+        }
+    }
 }
 
 /// Hysteresis state of one SV in corrective mode: the thresholds frozen when it triggered.
@@ -203,6 +228,14 @@ impl SolveStats {
     }
 }
 
+/// What to command now: the first step's longitudinal acceleration and the speed it reaches
+/// at the end of the first step. A vehicle that cannot take an acceleration tracks the speed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SetPoint {
+    pub accel_mps2: f64,
+    pub target_speed_mps: f64,
+}
+
 /// The answer of one decision.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Decision {
@@ -210,6 +243,8 @@ pub struct Decision {
     pub action: Action,
     /// Maneuver to command now `(alpha, beta)`.
     pub next_maneuver: Maneuver,
+    /// Longitudinal set-point of the first step.
+    pub setpoint: SetPoint,
     /// The planned sequence over the horizon.
     pub plan: Vec<PlanStep>,
     pub layer: Layer,

@@ -14,6 +14,12 @@ const MAX_ACCEL_MPS2: f64 = 100.0;
 /// Narrower lanes are not a road; the bound also keeps lane arithmetic far from overflow.
 const MIN_LANE_WIDTH_M: f64 = 1.0;
 const MAX_LANE_WIDTH_M: f64 = 20.0;
+/// A speed this little below zero is measurement noise of a standing vehicle, not an error:
+/// it is accepted and read as 0 (see [`normalised`]).
+pub const NEGATIVE_SPEED_TOLERANCE_MPS: f64 = 0.5;
+/// At most this many SVs in one request. The planner uses the `perception.max_svs` most
+/// relevant of them (see `problem::relevant_svs`); a perception stack may send all it sees.
+pub const MAX_INPUT_SVS: usize = 64;
 
 fn within(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), InputError> {
     if !value.is_finite() {
@@ -33,10 +39,10 @@ fn speed(field: &'static str, value: f64) -> Result<(), InputError> {
     if !value.is_finite() {
         return Err(InputError::NonFinite { field });
     }
-    if value < 0.0 {
+    if value < -NEGATIVE_SPEED_TOLERANCE_MPS {
         return Err(InputError::NegativeSpeed { field, value });
     }
-    within(field, value, 0.0, MAX_SPEED_MPS)
+    within(field, value, -NEGATIVE_SPEED_TOLERANCE_MPS, MAX_SPEED_MPS)
 }
 
 /// Check a situation against the configuration.
@@ -64,37 +70,43 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
     let lane = ego.maneuver.lane;
     if lane == 0 || lane > road.lanes {
         return Err(InputError::LaneOutOfRange {
-            what: "ego target",
+            field: "ego.maneuver.lane",
             lane: i64::from(lane),
             lanes: road.lanes,
         });
     }
     if !(-1..=1).contains(&ego.maneuver.beta) {
         return Err(InputError::BetaOutOfRange {
-            what: "ego",
+            field: "ego.maneuver.beta",
             beta: ego.maneuver.beta,
         });
     }
     nearest_lane(road, ego.y_m).map_err(|lane| InputError::LaneOutOfRange {
-        what: "ego position",
+        field: "ego.y_m",
         lane,
         lanes: road.lanes,
     })?;
 
-    if s.svs.len() > config.perception.max_svs {
+    if s.svs.len() > MAX_INPUT_SVS {
         return Err(InputError::TooManyVehicles {
             count: s.svs.len(),
-            capacity: config.perception.max_svs,
+            capacity: MAX_INPUT_SVS,
         });
     }
     let mut ids: Vec<u32> = Vec::with_capacity(s.svs.len());
     for sv in &s.svs {
         finite("sv.x_m", sv.x_m)?;
         finite("sv.y_m", sv.y_m)?;
+        within("sv.vy_mps", sv.vy_mps, -MAX_SPEED_MPS, MAX_SPEED_MPS)?;
+        for (field, size) in [("sv.length_m", sv.length_m), ("sv.width_m", sv.width_m)] {
+            if let Some(size) = size {
+                within(field, size, 0.5, 30.0)?;
+            }
+        }
         speed("sv.v_mps", sv.v_mps)?;
         within("sv.a_mps2", sv.a_mps2, -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2)?;
         nearest_lane(road, sv.y_m).map_err(|lane| InputError::LaneOutOfRange {
-            what: "SV position",
+            field: "sv.y_m",
             lane,
             lanes: road.lanes,
         })?;
@@ -106,25 +118,29 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
     }
 
     let memory = &s.memory;
-    if memory.corrective.len() > config.perception.max_svs {
+    if memory.corrective.len() > MAX_INPUT_SVS {
         return Err(InputError::InvalidMemory {
+            field: "memory.corrective",
             why: "more corrective entries than SV capacity",
         });
     }
     for e in &memory.corrective {
         if !(e.release_m.abs() <= MAX_POSITION_M && e.trigger_m.abs() <= MAX_POSITION_M) {
             return Err(InputError::InvalidMemory {
+                field: "memory.corrective",
                 why: "threshold not a finite distance",
             });
         }
         if e.release_m < e.trigger_m {
             return Err(InputError::InvalidMemory {
+                field: "memory.corrective",
                 why: "release below trigger",
             });
         }
     }
     if memory.previous_plan.len() > config.timing.horizon {
         return Err(InputError::InvalidMemory {
+            field: "memory.previous_plan",
             why: "previous plan longer than the horizon",
         });
     }
@@ -134,8 +150,22 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
         .any(|a| !(-1..=1).contains(&a.lateral) || !(-1..=1).contains(&a.longitudinal))
     {
         return Err(InputError::InvalidMemory {
+            field: "memory.previous_plan",
             why: "previous plan action outside -1..=1",
         });
     }
     Ok(())
+}
+
+/// The situation with measurement tolerances applied: speeds within
+/// [`NEGATIVE_SPEED_TOLERANCE_MPS`] below zero read as 0. Call after [`validate`].
+pub fn normalised(s: &Situation) -> Situation {
+    let mut out = s.clone();
+    out.ego.v_mps = out.ego.v_mps.max(0.0);
+    out.ego.desired_speed_mps = out.ego.desired_speed_mps.max(0.0);
+    out.road.speed_limit_mps = out.road.speed_limit_mps.max(0.0);
+    for sv in &mut out.svs {
+        sv.v_mps = sv.v_mps.max(0.0);
+    }
+    out
 }

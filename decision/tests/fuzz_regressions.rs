@@ -50,7 +50,7 @@ fn lateral_position_far_off_a_very_narrow_road_is_a_typed_error() {
             matches!(
                 r,
                 Err(DecisionError::Input(InputError::LaneOutOfRange {
-                    what: "ego position",
+                    field: "ego.y_m",
                     ..
                 }))
             )
@@ -73,13 +73,7 @@ fn fallback_from_accelerating_to_braking_is_a_valid_action() {
     s.ego.v_mps = 15.0;
     s.ego.desired_speed_mps = 15.0;
     s.ego.maneuver.beta = 1;
-    s.svs.push(decision::SvObservation {
-        id: 3,
-        x_m: 15.0,
-        y_m: 3.5,
-        v_mps: 0.0,
-        a_mps2: 0.0,
-    });
+    s.svs.push(decision::SvObservation::new(3, 15.0, 3.5, 0.0, 0.0));
     let d = fallback_only(&PlannerConfig::default(), &s).unwrap();
     assert_eq!(d.next_maneuver.beta, -1, "the fallback brakes: {d:?}");
     let unit = |a: decision::Action| (-1..=1).contains(&a.lateral) && (-1..=1).contains(&a.longitudinal);

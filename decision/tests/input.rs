@@ -78,14 +78,14 @@ proptest! {
         dup.svs[1].id = dup.svs[0].id;
         prop_assert_eq!(input_error(&mut p, &dup), InputError::DuplicateSvId { id: s.svs[0].id });
         let template = s.svs[0];
-        for k in 0..(16 - s.svs.len() + extra) {
+        for k in 0..(decision::MAX_INPUT_SVS - s.svs.len() + extra) {
             let mut sv = template;
             sv.id = 10_000 + k as u32;
             sv.x_m += 1000.0 + 10.0 * k as f64;
             s.svs.push(sv);
         }
         let count = s.svs.len();
-        prop_assert_eq!(input_error(&mut p, &s), InputError::TooManyVehicles { count, capacity: 16 });
+        prop_assert_eq!(input_error(&mut p, &s), InputError::TooManyVehicles { count, capacity: decision::MAX_INPUT_SVS });
     }
 
     #[test]
@@ -134,6 +134,9 @@ fn beta_out_of_range_is_rejected() {
     let mut p = Planner::new(PlannerConfig::default()).unwrap();
     assert_eq!(
         input_error(&mut p, &s),
-        InputError::BetaOutOfRange { what: "ego", beta: 2 }
+        InputError::BetaOutOfRange {
+            field: "ego.maneuver.beta",
+            beta: 2
+        }
     );
 }

@@ -18,13 +18,7 @@ fn situation(ego_y: f64, target: u8, sv_y: f64) -> Situation {
             maneuver: Maneuver { lane: target, beta: 0 },
         },
         // 15 m ahead at the same speed: far inside the IDM distance (~32 m).
-        svs: vec![SvObservation {
-            id: 1,
-            x_m: 20.0,
-            y_m: sv_y,
-            v_mps: 20.0,
-            a_mps2: 0.0,
-        }],
+        svs: vec![SvObservation::new(1, 20.0, sv_y, 20.0, 0.0)],
         memory: PlannerMemory::default(),
     }
 }

@@ -28,7 +28,22 @@ same_fields!(Road <=> decision::Road { lanes, lane_width_m, speed_limit_mps });
 same_fields!(Maneuver <=> decision::Maneuver { lane, beta });
 same_fields!(Action <=> decision::Action { lateral, longitudinal });
 same_fields!(EgoState <=> decision::EgoState { x_m, y_m, v_mps, desired_speed_mps, maneuver via into });
-same_fields!(SvObservation <=> decision::SvObservation { id, x_m, y_m, v_mps, a_mps2 });
+impl From<decision::SvObservation> for SvObservation {
+    fn from(v: decision::SvObservation) -> Self {
+        Self {
+            id: v.id,
+            x_m: v.x_m,
+            y_m: v.y_m,
+            v_mps: v.v_mps,
+            a_mps2: v.a_mps2,
+        }
+    }
+}
+impl From<SvObservation> for decision::SvObservation {
+    fn from(v: SvObservation) -> Self {
+        decision::SvObservation::new(v.id, v.x_m, v.y_m, v.v_mps, v.a_mps2)
+    }
+}
 same_fields!(CorrectiveEntry <=> decision::CorrectiveEntry { sv_id, release_m, trigger_m });
 same_fields!(PlanStep <=> decision::PlanStep { action via into, maneuver via into, x_m, v_mps, occupied_lanes });
 
@@ -139,25 +154,6 @@ impl PlanResponse {
     }
 }
 
-/// Field path reported for an `InputError::LaneOutOfRange { what, .. }`.
-fn lane_field(what: &str) -> &'static str {
-    match what {
-        "ego target" => "ego.maneuver.lane",
-        "ego position" => "ego.y_m",
-        "SV position" => "sv.y_m",
-        _ => "lane",
-    }
-}
-
-/// Field path reported for an `InputError::InvalidMemory { why }`.
-fn memory_field(why: &str) -> &'static str {
-    if why.contains("previous plan") {
-        "memory.previous_plan"
-    } else {
-        "memory.corrective"
-    }
-}
-
 impl From<&decision::InputError> for Rejected {
     /// Every input error has its own reason code; the field is the decision core's dotted
     /// path (`road.lane_width_m`, `ego.v_mps`, `sv.x_m`, ...).
@@ -168,11 +164,11 @@ impl From<&decision::InputError> for Rejected {
             E::OutOfRange { field, .. } => Rejected::new(RejectReason::OutOfRange, field),
             E::NegativeSpeed { field, .. } => Rejected::new(RejectReason::NegativeSpeed, field),
             E::LaneCount { .. } => Rejected::new(RejectReason::LaneCount, "road.lanes"),
-            E::LaneOutOfRange { what, .. } => Rejected::new(RejectReason::LaneOutOfRange, lane_field(what)),
-            E::BetaOutOfRange { .. } => Rejected::new(RejectReason::BetaOutOfRange, "ego.maneuver.beta"),
+            E::LaneOutOfRange { field, .. } => Rejected::new(RejectReason::LaneOutOfRange, field),
+            E::BetaOutOfRange { field, .. } => Rejected::new(RejectReason::BetaOutOfRange, field),
             E::DuplicateSvId { .. } => Rejected::new(RejectReason::DuplicateSvId, "sv.id"),
             E::TooManyVehicles { .. } => Rejected::new(RejectReason::TooManyVehicles, "svs"),
-            E::InvalidMemory { why } => Rejected::new(RejectReason::InvalidMemory, memory_field(why)),
+            E::InvalidMemory { field, .. } => Rejected::new(RejectReason::InvalidMemory, field),
         }
     }
 }

@@ -32,13 +32,7 @@ proptest! {
 fn situations_beyond_capacity_do_not_convert() {
     let mut situation = example_request().to_situation();
     situation.svs = (0..17)
-        .map(|id| decision::SvObservation {
-            id,
-            x_m: 10.0 * f64::from(id),
-            y_m: 3.5,
-            v_mps: 20.0,
-            a_mps2: 0.0,
-        })
+        .map(|id| decision::SvObservation::new(id, 10.0 * f64::from(id), 3.5, 20.0, 0.0))
         .collect();
     assert!(matches!(
         PlanRequest::from_situation(1, 1, 1, &situation),
@@ -67,17 +61,21 @@ fn every_input_error() -> Vec<InputError> {
         },
         InputError::LaneCount { lanes: 0, max: 8 },
         InputError::LaneOutOfRange {
-            what: "ego target",
+            field: "ego.maneuver.lane",
             lane: 5,
             lanes: 3,
         },
-        InputError::BetaOutOfRange { what: "ego", beta: 3 },
+        InputError::BetaOutOfRange {
+            field: "ego.maneuver.beta",
+            beta: 3,
+        },
         InputError::DuplicateSvId { id: 4 },
         InputError::TooManyVehicles {
             count: 17,
             capacity: 16,
         },
         InputError::InvalidMemory {
+            field: "memory.corrective",
             why: "release below trigger",
         },
     ]
@@ -102,7 +100,7 @@ fn input_errors_get_distinct_reasons() {
     });
     assert_eq!((r.reason(), r.field()), (Ok(RejectReason::NegativeSpeed), "ego.v_mps"));
     let r = Rejected::from(&InputError::LaneOutOfRange {
-        what: "SV position",
+        field: "sv.y_m",
         lane: 9,
         lanes: 3,
     });

@@ -189,11 +189,8 @@ pub fn situation_from(
         svs: svs
             .into_iter()
             .map(|s| decision::SvObservation {
-                id: s.id,
-                x_m: s.x,
-                y_m: s.y,
-                v_mps: s.v,
-                a_mps2: s.a,
+                vy_mps: s.vy,
+                ..decision::SvObservation::new(s.id, s.x, s.y, s.v, s.a)
             })
             .collect(),
         memory,

@@ -434,9 +434,20 @@ pub fn decision_from_response(config: &PlannerConfig, response: &PlanResponse) -
                 Err(e) => return Err(LinkError::Transport(format!("bad response: {e}"))),
             };
             let memory = decision::PlannerMemory::from(&d.memory);
+            let next_maneuver: decision::Maneuver = d.next_maneuver.into();
+            let first_speed = d.plan.iter().next().map(|s| s.v_mps);
+            let accel = match next_maneuver.beta {
+                -1 => config.ego.decel_mps2,
+                1 => config.ego.accel_mps2,
+                _ => 0.0,
+            };
             Ok(Decision {
                 action: d.action.into(),
-                next_maneuver: d.next_maneuver.into(),
+                next_maneuver,
+                setpoint: decision::SetPoint {
+                    accel_mps2: accel,
+                    target_speed_mps: first_speed.unwrap_or(0.0),
+                },
                 plan: d.plan.iter().map(|&s| s.into()).collect(),
                 layer,
                 stats: decision::SolveStats {

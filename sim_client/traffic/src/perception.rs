@@ -34,6 +34,9 @@ pub struct SvObservation {
     pub v: f64,
     /// Acceleration (m/s^2).
     pub a: f64,
+    /// Lateral velocity (m/s, positive = to the left).
+    #[serde(default)]
+    pub vy: f64,
 }
 
 /// Snapshot handed to a planner at a decision instant.

@@ -22,6 +22,9 @@ pub struct Vehicle {
     pub x: f64,
     /// Lateral position of the centre (m).
     pub y: f64,
+    /// Lateral velocity over the last step (m/s, positive = to the left).
+    #[serde(default)]
+    pub vy: f64,
     /// Speed (m/s), never negative.
     pub v: f64,
     /// Longitudinal acceleration applied during the last step (m/s^2).

@@ -42,6 +42,9 @@ pub struct WorldSnapshot {
     pub ego_mode: EgoMode,
     /// Last ego command.
     pub ego_command: EgoCommand,
+    /// Acceleration set-point that goes with it, if the driver gave one.
+    #[serde(default)]
+    pub ego_accel_setpoint: Option<f64>,
     /// Ego first, then SVs by increasing id.
     pub vehicles: Vec<Vehicle>,
     /// Pairs `(smaller id, larger id)` overlapping at the end of the last step.
@@ -57,6 +60,7 @@ pub struct World {
     params: SimParams,
     ego_mode: EgoMode,
     ego_command: EgoCommand,
+    ego_accel_setpoint: Option<f64>,
     vehicles: Vec<Vehicle>,
     contacts: Vec<(u32, u32)>,
     step_index: u64,
@@ -112,6 +116,7 @@ impl World {
                 kind,
                 x: init.x,
                 y: road.lane_centre(init.lane),
+                vy: 0.0,
                 v: init.v,
                 a: 0.0,
                 lane: init.lane,
@@ -133,6 +138,7 @@ impl World {
                 target_lane: scenario.ego.lane,
                 beta: 0,
             },
+            ego_accel_setpoint: None,
             vehicles,
             contacts,
             step_index: 0,
@@ -155,6 +161,7 @@ impl World {
             params: s.params,
             ego_mode: s.ego_mode,
             ego_command: s.ego_command,
+            ego_accel_setpoint: s.ego_accel_setpoint,
             vehicles: s.vehicles,
             contacts: s.contacts,
             step_index: s.step_index,
@@ -171,6 +178,7 @@ impl World {
             params: self.params,
             ego_mode: self.ego_mode,
             ego_command: self.ego_command,
+            ego_accel_setpoint: self.ego_accel_setpoint,
             vehicles: self.vehicles.clone(),
             contacts: self.contacts.clone(),
             rng: self.rng.clone(),
@@ -236,6 +244,7 @@ impl World {
             return Err(SimError::InvalidBeta(cmd.beta));
         }
         self.ego_command = cmd;
+        self.ego_accel_setpoint = None;
         let road = self.road;
         let p = self.params;
         let ego = &mut self.vehicles[0];
@@ -254,6 +263,20 @@ impl World {
             });
             ego.target_lane = cmd.target_lane;
         }
+        Ok(())
+    }
+
+    /// Sets the command with an acceleration set-point: the ego tracks `accel` (jerk-limited,
+    /// within `[a_dec, a_acc]`) instead of the fixed acceleration of `cmd.beta`.
+    pub fn set_ego_command_with_accel(&mut self, cmd: EgoCommand, accel: f64) -> Result<(), SimError> {
+        if !accel.is_finite() {
+            return Err(SimError::InvalidParameter {
+                name: "ego accel set-point",
+                reason: "must be finite",
+            });
+        }
+        self.set_ego_command(cmd)?;
+        self.ego_accel_setpoint = Some(accel);
         Ok(())
     }
 
@@ -282,6 +305,7 @@ impl World {
                     y: s.y,
                     v: s.v,
                     a: s.a,
+                    vy: s.vy,
                 })
                 .collect(),
         }
@@ -395,10 +419,11 @@ impl World {
         let p = &self.params;
         match (v.kind, self.ego_mode) {
             (VehicleKind::Ego, EgoMode::Commanded) => {
-                let target = match v.beta {
-                    1 => p.a_acc,
-                    -1 => p.a_dec,
-                    _ => 0.0,
+                let target = match (self.ego_accel_setpoint, v.beta) {
+                    (Some(a), _) => a.clamp(p.a_dec, p.a_acc),
+                    (None, 1) => p.a_acc,
+                    (None, -1) => p.a_dec,
+                    (None, _) => 0.0,
                 };
                 jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
             }
@@ -563,6 +588,7 @@ fn integrate_longitudinal(veh: &mut Vehicle, a: f64, dt: f64, v_max: Option<f64>
 }
 
 fn advance_lateral(veh: &mut Vehicle, road: &Road, dt: f64) {
+    let y0 = veh.y;
     if let Some(mut lc) = veh.lane_change {
         lc.steps_elapsed += 1;
         veh.y = lc.y(dt);
@@ -573,5 +599,6 @@ fn advance_lateral(veh: &mut Vehicle, road: &Road, dt: f64) {
             veh.lane_change = Some(lc);
         }
     }
+    veh.vy = (veh.y - y0) / dt;
     veh.lane = road.lane_of(veh.y);
 }

@@ -555,7 +555,8 @@ fn perception_reports_kinematics_within_range() {
             x: 299.0,
             y: 8.0,
             v: 20.0,
-            a: 0.0
+            a: 0.0,
+            vy: 0.0
         }
     );
 }
