@@ -11,6 +11,7 @@ use traffic::{EgoCommand, EgoMode, Perception, Scenario, SimParams, World};
 use crate::error::{Result, SimClientError};
 use crate::link::PlannerLink;
 use crate::metrics::{clean, EpisodeMetrics};
+use crate::safety::{classify_ego_collision, Body, EgoCollisionKind, SafetyAccumulator, SafetySummary};
 
 /// `|a|` below this counts as cruising when the IDM + MOBIL ego's longitudinal mode is
 /// read off its acceleration (same dead band the planner uses for SVs), m/s^2.
@@ -46,7 +47,8 @@ pub struct EpisodeSpec {
     pub duration_s: f64,
     /// At most this many SVs (the nearest) are sent to the planner.
     pub max_svs: usize,
-    /// Record every vehicle's state after every low-level step.
+    /// Record every vehicle's state after every low-level step, and the situation sent at
+    /// every decision (for the figures).
     pub record_trajectory: bool,
 }
 
@@ -66,6 +68,9 @@ pub struct DecisionRecord {
     pub beta: i8,
     /// SVs in corrective mode.
     pub corrective_svs: usize,
+    /// Their ids, from the decision's memory (space-separated in the CSV).
+    #[serde(with = "id_list")]
+    pub corrective_sv_ids: Vec<u32>,
     /// SVs sent to the planner.
     pub svs_sent: usize,
     /// Ego position and speed at the decision instant.
@@ -80,6 +85,26 @@ pub struct DecisionRecord {
     /// Wall time of the planner's decision (µs); not reproducible, kept out of the CSV.
     #[serde(skip)]
     pub solve_us: u64,
+    /// The situation sent (only with [`EpisodeSpec::record_trajectory`]).
+    #[serde(skip)]
+    pub situation: Option<Situation>,
+}
+
+/// A list of ids as one CSV cell: `"2 5"`.
+mod id_list {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(ids: &[u32], s: S) -> Result<S::Ok, S::Error> {
+        let text: Vec<String> = ids.iter().map(u32::to_string).collect();
+        s.serialize_str(&text.join(" "))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u32>, D::Error> {
+        let text = String::deserialize(d)?;
+        text.split_whitespace()
+            .map(|t| t.parse().map_err(serde::de::Error::custom))
+            .collect()
+    }
 }
 
 /// State of one vehicle after a low-level step.
@@ -114,6 +139,8 @@ pub struct CollisionEvent {
     pub time_s: f64,
     /// The other vehicle's id.
     pub other_id: u32,
+    /// Who caused it.
+    pub kind: EgoCollisionKind,
 }
 
 /// Everything an episode produced.
@@ -129,12 +156,16 @@ pub struct Episode {
     pub trajectory: Vec<VehicleState>,
     /// First ego collision, if any (the episode stops there).
     pub collision: Option<CollisionEvent>,
+    /// First contacts between two SVs until the episode stopped.
+    pub sv_collisions: u32,
     /// Low-level steps simulated.
     pub steps: u64,
     /// Simulated time (s).
     pub simulated_s: f64,
     /// Sum of the ego speed after every step (for the mean).
     pub ego_speed_sum: f64,
+    /// Surrogate safety measures over every step.
+    pub safety: SafetySummary,
 }
 
 impl Episode {
@@ -237,10 +268,13 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
         decisions: Vec::with_capacity((total_steps / steps_per_decision + 1) as usize),
         trajectory: Vec::new(),
         collision: None,
+        sv_collisions: 0,
         steps: 0,
         simulated_s: 0.0,
         ego_speed_sum: 0.0,
+        safety: SafetySummary::default(),
     };
+    let mut safety = SafetyAccumulator::for_world(&world);
     if spec.record_trajectory {
         record_states(&world, &mut episode.trajectory);
     }
@@ -263,6 +297,7 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
                         target_lane: m.lane,
                         beta: m.beta,
                     })?;
+                    let corrective_sv_ids = decision.memory.corrective.iter().map(|c| c.sv_id).collect();
                     memory = decision.memory;
                     DecisionRecord {
                         index,
@@ -271,12 +306,14 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
                         target_lane: m.lane,
                         beta: m.beta,
                         corrective_svs: decision.stats.corrective_svs,
+                        corrective_sv_ids,
                         svs_sent: situation.svs.len(),
                         ego_x_m: perception.ego.x,
                         ego_y_m: perception.ego.y,
                         ego_speed_mps: perception.ego.v,
                         plan: decision.plan,
                         solve_us: decision.stats.total_us,
+                        situation: spec.record_trajectory.then_some(situation),
                     }
                 }
                 Driver::IdmMobil => DecisionRecord {
@@ -286,29 +323,41 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
                     target_lane: perception.ego.target_lane,
                     beta: beta_of_acceleration(perception.ego.a),
                     corrective_svs: 0,
+                    corrective_sv_ids: Vec::new(),
                     svs_sent: 0,
                     ego_x_m: perception.ego.x,
                     ego_y_m: perception.ego.y,
                     ego_speed_mps: perception.ego.v,
                     plan: Vec::new(),
                     solve_us: 0,
+                    situation: None,
                 },
             };
             episode.decisions.push(record);
         }
         let collisions = world.step();
         episode.ego_speed_sum += world.ego().v;
+        let bodies = Body::all(&world);
+        safety.observe(&bodies);
         if spec.record_trajectory {
             record_states(&world, &mut episode.trajectory);
         }
+        episode.sv_collisions += collisions.iter().filter(|c| !c.involves_ego && c.first_contact).count() as u32;
         if let Some(c) = collisions.iter().find(|c| c.involves_ego && c.first_contact) {
+            let other_id = if c.a == traffic::EGO_ID { c.b } else { c.a };
+            let other = bodies
+                .iter()
+                .find(|b| b.id == other_id)
+                .expect("a colliding vehicle exists");
             episode.collision = Some(CollisionEvent {
                 time_s: clean(world.time()),
-                other_id: if c.a == traffic::EGO_ID { c.b } else { c.a },
+                other_id,
+                kind: classify_ego_collision(&bodies[0], other),
             });
             break;
         }
     }
+    episode.safety = safety.summary();
     episode.steps = world.step_index();
     episode.simulated_s = world.time();
     Ok(episode)

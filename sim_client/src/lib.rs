@@ -9,6 +9,7 @@
 //! planner process under load (`sim_client load` / `soak`).
 
 pub mod campaign;
+pub mod campaign_report;
 pub mod cases;
 pub mod episode;
 pub mod error;
@@ -17,7 +18,10 @@ pub mod load;
 pub mod metrics;
 pub mod paper;
 pub mod plot;
+pub mod prediction;
+pub mod presets;
 pub mod report;
+pub mod safety;
 
 pub use error::{Result, SimClientError};
 pub use link::{InProcess, LinkError, LinkOptions, PlanChannel, PlannerLink, RemoteLink, Transport, ZenohTarget};

@@ -4,6 +4,7 @@ use decision::Layer;
 use serde::{Deserialize, Serialize};
 
 use crate::episode::Episode;
+use crate::safety::{EgoCollisionKind, SafetySummary};
 
 /// Decisions counted by the layer that produced them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -39,6 +40,31 @@ impl LayerCounts {
     }
 }
 
+/// Collisions by who caused them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CollisionSplit {
+    /// The ego rear-ended a vehicle ahead in its lane, or changed lanes into a vehicle.
+    pub ego_at_fault: u64,
+    /// The ego kept its lane and was hit from behind or cut into.
+    pub ego_hit_in_lane: u64,
+    /// First contacts between two SVs (until the episode stopped).
+    pub sv_sv: u64,
+}
+
+impl CollisionSplit {
+    /// Ego collisions, both kinds.
+    pub fn ego_total(&self) -> u64 {
+        self.ego_at_fault + self.ego_hit_in_lane
+    }
+
+    /// Sum of two tallies.
+    pub fn merge(&mut self, other: &CollisionSplit) {
+        self.ego_at_fault += other.ego_at_fault;
+        self.ego_hit_in_lane += other.ego_hit_in_lane;
+        self.sv_sv += other.sv_sv;
+    }
+}
+
 /// Reproducible metrics of one episode (no wall-clock quantity).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeMetrics {
@@ -52,6 +78,8 @@ pub struct EpisodeMetrics {
     pub collision_time_s: Option<f64>,
     /// The vehicle the ego hit.
     pub collision_with: Option<u32>,
+    /// Ego collisions by cause, and SV-SV contacts.
+    pub collision_split: CollisionSplit,
     /// Changes of the commanded target lane (the first decision compares with the initial lane).
     pub lane_changes: u32,
     /// Changes of the commanded beta between consecutive decisions.
@@ -62,6 +90,8 @@ pub struct EpisodeMetrics {
     pub mean_speed_mps: f64,
     /// Simulated time (s).
     pub simulated_s: f64,
+    /// Surrogate safety measures of the ego, step by step.
+    pub safety: SafetySummary,
 }
 
 /// Rounds to 1e-9 so that sums of periods print cleanly and identically.
@@ -94,7 +124,14 @@ impl EpisodeMetrics {
                 corrective += 1;
             }
         }
+        let kind = e.collision.map(|c| c.kind);
         EpisodeMetrics {
+            collision_split: CollisionSplit {
+                ego_at_fault: u64::from(kind == Some(EgoCollisionKind::EgoAtFault)),
+                ego_hit_in_lane: u64::from(kind == Some(EgoCollisionKind::EgoHitInLane)),
+                sv_sv: u64::from(e.sv_collisions),
+            },
+            safety: e.safety.clone(),
             decisions: e.decisions.len() as u64,
             decisions_by_layer: by_layer,
             collisions: u32::from(e.collision.is_some()),
@@ -158,12 +195,14 @@ mod tests {
             target_lane: lane,
             beta,
             corrective_svs: corrective,
+            corrective_sv_ids: (1..=corrective as u32).collect(),
             svs_sent: 0,
             ego_x_m: 0.0,
             ego_y_m: 0.0,
             ego_speed_mps: 10.0,
             plan: Vec::new(),
             solve_us: 100 * (index + 1),
+            situation: None,
         }
     }
 
@@ -183,9 +222,11 @@ mod tests {
             decisions,
             trajectory: Vec::new(),
             collision: None,
+            sv_collisions: 0,
             steps: 24,
             simulated_s: 2.4,
             ego_speed_sum: 24.0 * 12.0,
+            safety: SafetySummary::default(),
         };
         let m = EpisodeMetrics::from_episode(&e);
         assert_eq!(m.decisions, 6);

@@ -1,6 +1,6 @@
 use serde::{Deserialize, Serialize};
 
-use crate::LaneChange;
+use crate::{LaneChange, LaneSet, Road};
 
 /// Who controls a vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -50,5 +50,16 @@ impl Vehicle {
     /// Lane-change progress in `[0, 1]`, or `None` when driving in a lane.
     pub fn lane_change_progress(&self, dt: f64) -> Option<f64> {
         self.lane_change.map(|lc| lc.progress(dt))
+    }
+
+    /// Lanes in which the vehicle matters to others: the lanes its rectangle touches plus,
+    /// during a lane change, every lane from origin to target.
+    pub fn lane_set(&self, road: &Road) -> LaneSet {
+        let mut s = road.lanes_occupied(self.y);
+        s.insert(self.lane);
+        if let Some(lc) = self.lane_change {
+            s = s.union(LaneSet::span(lc.origin_lane, lc.target_lane));
+        }
+        s
     }
 }

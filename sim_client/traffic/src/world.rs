@@ -351,19 +351,10 @@ impl World {
         out
     }
 
-    /// Lanes in which vehicle `v` matters to others: the lanes its rectangle touches plus,
-    /// during a lane change, every lane from origin to target.
-    fn lane_set(&self, v: &Vehicle) -> LaneSet {
-        let mut s = self.road.lanes_occupied(v.y);
-        s.insert(v.lane);
-        if let Some(lc) = v.lane_change {
-            s = s.union(LaneSet::span(lc.origin_lane, lc.target_lane));
-        }
-        s
-    }
-
-    fn lane_sets(&self) -> Vec<LaneSet> {
-        self.vehicles.iter().map(|v| self.lane_set(v)).collect()
+    /// Lanes each vehicle occupies (see [`Vehicle::lane_set`]), in [`World::vehicles`] order:
+    /// the sets leader search, IDM and MOBIL use.
+    pub fn lane_sets(&self) -> Vec<LaneSet> {
+        self.vehicles.iter().map(|v| v.lane_set(&self.road)).collect()
     }
 
     /// Whether vehicle `j` is ahead of `i` (ties in x broken by id for determinism).
