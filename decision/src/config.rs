@@ -67,10 +67,24 @@ impl Default for VehicleGeometry {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EgoModel {
-    /// Acceleration while decelerating (`beta = -1`), m/s^2.
+    /// Acceleration while decelerating (`beta = -1`), m/s^2: the fixed value of the discrete
+    /// maps, and of the SVs' predicted braking branches.
     pub decel_mps2: f64,
-    /// Acceleration while accelerating (`beta = +1`), m/s^2.
+    /// Acceleration while accelerating (`beta = +1`), m/s^2 (the largest one with
+    /// `continuous_accel`).
     pub accel_mps2: f64,
+    /// The paper's kinematic input `u_k`: the maneuver state fixes the sign of the ego's
+    /// acceleration and the MPC picks its magnitude (`beta = -1`: `[max_decel, -cruise_band]`,
+    /// `0`: `[-cruise_band, cruise_band]`, `+1`: `[cruise_band, accel]`). Off: each state has
+    /// one fixed acceleration, as in formulation.md.
+    pub continuous_accel: bool,
+    /// Strongest braking the ego may plan, m/s^2 (with `continuous_accel`).
+    pub max_decel_mps2: f64,
+    /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
+    pub comfort_decel_mps2: f64,
+    /// `|a|` within this counts as cruising, m/s^2: the same dead band that reads an SV's
+    /// `beta` from its acceleration.
+    pub cruise_band_mps2: f64,
     /// Allow a lateral and a longitudinal change in the same step (9 actions instead of 5).
     pub combined_actions: bool,
     /// How long the vehicle takes for a one-lane change, s. The planner holds the origin lane
@@ -83,6 +97,10 @@ impl Default for EgoModel {
         Self {
             decel_mps2: -3.0,
             accel_mps2: 1.5,
+            continuous_accel: true,
+            max_decel_mps2: -6.0,
+            comfort_decel_mps2: -2.0,
+            cruise_band_mps2: 0.3,
             combined_actions: false,
             lane_change_s: 3.0,
         }
@@ -101,6 +119,13 @@ pub struct IdmParams {
     pub max_accel_mps2: f64,
     /// Comfortable deceleration `b`, m/s^2.
     pub comfort_decel_mps2: f64,
+    /// The margin at step `h` follows the ego's predicted speed there (the IDM distance
+    /// linearised at the measured speed) instead of staying at its value at the decision.
+    pub speed_dependent: bool,
+    /// An SV already inside its margin at the decision (it entered the perception window or
+    /// cut in that close) may stay inside by this share of the violation, decaying by this
+    /// factor per step (a discrete control-barrier condition); 0: the margin holds at once.
+    pub violation_decay: f64,
 }
 
 impl Default for IdmParams {
@@ -110,6 +135,8 @@ impl Default for IdmParams {
             time_headway_s: 1.5,
             max_accel_mps2: 1.5,
             comfort_decel_mps2: 2.0,
+            speed_dependent: true,
+            violation_decay: 0.8,
         }
     }
 }
@@ -132,6 +159,9 @@ pub struct Prediction {
     pub noise_diag: [f64; 3],
     /// Tail probability `epsilon` of the chance constraint.
     pub epsilon: f64,
+    /// An SV moving sideways faster than this is predicted in the lane it moves towards
+    /// from the first step (m/s); 0 switches this off.
+    pub lateral_velocity_threshold_mps: f64,
 }
 
 impl Default for Prediction {
@@ -144,6 +174,7 @@ impl Default for Prediction {
             accel_dead_band_mps2: 0.3,
             noise_diag: [0.25, 0.04, 0.25],
             epsilon: 0.05,
+            lateral_velocity_threshold_mps: 0.2,
         }
     }
 }
@@ -161,15 +192,20 @@ pub struct Perception {
     pub max_svs: usize,
     /// Roads with more lanes than this are rejected.
     pub max_lanes: u8,
+    /// A vehicle behind the ego in a lane the ego already occupies is responsible for its own
+    /// gap: the ego gets no safety row for it there (it keeps one in every lane it moves
+    /// into), so it is not asked to outrun a faster follower.
+    pub rear_responsibility: bool,
 }
 
 impl Default for Perception {
     fn default() -> Self {
         Self {
-            range_ahead_m: 150.0,
-            range_behind_m: 80.0,
+            range_ahead_m: 200.0,
+            range_behind_m: 100.0,
             max_svs: 16,
             max_lanes: 8,
+            rear_responsibility: true,
         }
     }
 }
@@ -195,6 +231,13 @@ pub struct Hysteresis {
     /// rests on `d_hc`; with this on, the band is priced (`w_s` per metre) but never harder
     /// than `d_hc`. Measured on the campaign: see `docs/formulation-notes.md`.
     pub soft_band: bool,
+    /// Release when the gaps reach the release distance on the rollout where the ego resumes
+    /// accelerating (off: on the nominal rollout, as in the paper).
+    pub release_on_resuming: bool,
+    /// The frozen release distance shrinks to the one that holds at the leader's speed once
+    /// the ego no longer closes in: a distance frozen at a high closing speed is otherwise
+    /// kept long after the speeds matched, and the ego falls far behind.
+    pub resize_release: bool,
 }
 
 impl Default for Hysteresis {
@@ -207,6 +250,8 @@ impl Default for Hysteresis {
             gamma1: 1.0,
             gamma2: 1.4,
             soft_band: true,
+            release_on_resuming: true,
+            resize_release: true,
         }
     }
 }
@@ -238,6 +283,10 @@ pub struct CostWeights {
     pub w_lane_speed: f64,
     /// How far ahead an SV counts as holding a lane's speed, m.
     pub lane_lookahead_m: f64,
+    /// Per m/s^2 of planned braking per step (with `ego.continuous_accel`).
+    pub w_brake: f64,
+    /// Per m/s^2 of planned braking beyond `ego.comfort_decel_mps2` per step.
+    pub w_hard_brake: f64,
 }
 
 impl Default for CostWeights {
@@ -250,6 +299,8 @@ impl Default for CostWeights {
             w_speed: 1.0,
             w_lane_speed: 3.0,
             lane_lookahead_m: 100.0,
+            w_brake: 1.0,
+            w_hard_brake: 20.0,
         }
     }
 }
@@ -384,13 +435,26 @@ impl PlannerConfig {
         }
         if c.w_beta
             .iter()
-            .chain([&c.w_lane_change, &c.w_speed])
+            .chain([&c.w_lane_change, &c.w_speed, &c.w_brake, &c.w_hard_brake])
             .any(|w| !(w.is_finite() && *w >= 0.0))
         {
             return bad("cost", "weights must be finite and non-negative");
         }
         if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
             return bad("recovery.gamma", "must be in (0, 1)");
+        }
+        if !(e.max_decel_mps2 <= e.comfort_decel_mps2
+            && e.comfort_decel_mps2 <= -e.cruise_band_mps2
+            && e.cruise_band_mps2 >= 0.0
+            && e.cruise_band_mps2 <= e.accel_mps2)
+        {
+            return bad(
+                "ego",
+                "need max_decel <= comfort_decel <= -cruise_band <= 0 <= cruise_band <= accel",
+            );
+        }
+        if !(0.0..1.0).contains(&self.idm.violation_decay) {
+            return bad("idm.violation_decay", "must be in [0, 1)");
         }
         if !(e.lane_change_s.is_finite() && e.lane_change_s > 0.0) {
             return bad("ego.lane_change_s", "must be positive");

@@ -222,7 +222,14 @@ pub fn agree(
     };
     let problem = crate::problem::prepare(config, situation).problem;
     let actions: Vec<Action> = milp.plan.iter().map(|p| p.action).collect();
-    let exact = evaluate(&problem, &actions, mode).ok_or("MILP plan infeasible for the oracle")?;
+    let exact = evaluate(&problem, &actions, mode).ok_or_else(|| {
+        let other = evaluate(&problem, &actions, Mode::Relaxed).map(|e| e.cost);
+        let accel: Vec<f64> = milp.plan.iter().map(|p| p.v_mps).collect();
+        format!(
+            "MILP plan infeasible for the oracle in {mode:?} (relaxed: {other:?}); speeds {accel:?}; oracle cost {:?}",
+            oracle.stats.cost
+        )
+    })?;
     let (a, b) = (exact.cost, oracle.stats.cost.ok_or("oracle has no cost")?);
     if (a - b).abs() > 1e-6 {
         return Err(format!("cost {a} vs oracle {b}"));

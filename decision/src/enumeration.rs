@@ -7,7 +7,12 @@ use crate::problem::Problem;
 /// Best sequence and how many were examined. Ties go to the first in enumeration order
 /// ("keep" first), so the answer is deterministic.
 pub fn solve(problem: &Problem, mode: Mode) -> (Option<Evaluation>, usize) {
-    let sequences = admissible_sequences(problem.start, problem.lanes, problem.horizon, problem.combined_actions);
+    let sequences = admissible_sequences(
+        problem.ego.maneuver,
+        problem.lanes,
+        problem.horizon,
+        problem.combined_actions,
+    );
     let count = sequences.len();
     let mut best: Option<Evaluation> = None;
     for actions in &sequences {

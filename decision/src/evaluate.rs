@@ -1,7 +1,17 @@
-//! Exact cost and feasibility of one ego action sequence. Once the sequence is fixed, every
-//! slack has a closed-form optimal value, so this is the reference both backends answer to:
-//! the enumeration backend minimises it directly, and the MILP's plan is re-scored by it.
+//! Exact cost and feasibility of one ego action sequence: the reference both backends answer
+//! to. The enumeration backend minimises it directly, and the MILP's plan is re-scored by it.
+//!
+//! Once the sequence is fixed, the maneuver states, lanes and every row that applies are
+//! known. With fixed accelerations (the discrete maps) every slack then has a closed-form
+//! optimal value. With the continuous input `u`, what is left is a small LP over the
+//! accelerations of the fixed sequence (at most `H` of them, bounded by their states); it is
+//! written here from the rollout directly, independent of the MILP's encoding, and solved
+//! with HiGHS. Its accelerations are then scored by the closed form, so both paths share one
+//! definition of the cost.
 
+use std::cell::RefCell;
+
+use crate::highs_solver::{HighsSolver, MipModel, MipStatus};
 use crate::model::{rollout, Rollout};
 use crate::problem::Problem;
 use crate::types::Action;
@@ -9,7 +19,7 @@ use crate::types::Action;
 /// Which layer's constraints apply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
-    /// Nominal MPC: hard rows strict, hysteresis slack within `d_HS`.
+    /// Nominal MPC: hard rows strict, hysteresis slack within its bound.
     Nominal,
     /// Layer A: every safety row may use a global slack up to `gamma * d_idm` at cost `w_q`.
     Relaxed,
@@ -19,6 +29,7 @@ pub enum Mode {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Evaluation {
     pub cost: f64,
+    /// The plan, at the accelerations chosen for it.
     pub rollout: Rollout,
     /// Hysteresis slack per SV and step, `[sv * H + h]`.
     pub hysteresis_slack: Vec<f64>,
@@ -26,25 +37,75 @@ pub struct Evaluation {
     pub global_slack: Vec<f64>,
 }
 
-/// Largest shortfall `rhs - gap` over the SV's branches that share a lane with the ego at
-/// step `h`; `None` when none does.
-fn shortfall(
-    problem: &Problem,
-    sv: usize,
-    h: usize,
-    ego_x: f64,
-    ego_occ: crate::lanes::LaneSet,
-    rhs: f64,
-) -> Option<f64> {
-    let c = &problem.svs[sv];
-    c.branches
-        .iter()
-        .filter(|b| b.occupancy[h].intersects(ego_occ))
-        .map(|b| rhs - c.gap(b.x[h], ego_x, problem.length))
-        .reduce(f64::max)
+/// One linear safety row on the accelerations: `sum_j coef[j] u_j (+ slacks) >= rhs`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Requirement {
+    pub sv: usize,
+    /// Step (0-based); `coef` has `step + 1` entries.
+    pub step: usize,
+    /// A hysteresis band row (its shortfall may be covered by the hysteresis slack).
+    pub band: bool,
+    pub rhs: f64,
+    pub coef: Vec<f64>,
 }
 
-/// Behaviour and speed cost of a rollout (the part without slacks).
+impl Requirement {
+    fn shortfall(&self, u: &[f64]) -> f64 {
+        self.rhs - self.coef.iter().zip(u).map(|(c, u)| c * u).sum::<f64>()
+    }
+}
+
+/// Every safety row that applies to the sequence rolled out in `r`.
+pub fn requirements(problem: &Problem, r: &Rollout) -> Vec<Requirement> {
+    let kin = &problem.kin;
+    let l = problem.length;
+    let mut out = Vec::new();
+    for (i, c) in problem.svs.iter().enumerate() {
+        let sign = c.sign();
+        let floor_matters = c.floor_matters();
+        for h in 0..problem.horizon {
+            let coast = kin.coasting_position(&problem.ego, h);
+            let position: Vec<f64> = (0..=h).map(|j| -sign * kin.position_gain(h, j)).collect();
+            let binding = c.binding_lanes(r.occupancy[h], problem.ego.occupancy);
+            for (b, branch) in c.branches.iter().enumerate() {
+                if !branch.occupancy[h].intersects(binding) {
+                    continue;
+                }
+                let base = l - c.allowance[h] - sign * (branch.x[h] - coast);
+                out.push(Requirement {
+                    sv: i,
+                    step: h,
+                    band: false,
+                    rhs: c.margin[b][h] + base,
+                    coef: position.iter().map(|p| p - c.slope * kin.dt).collect(),
+                });
+                if floor_matters {
+                    out.push(Requirement {
+                        sv: i,
+                        step: h,
+                        band: false,
+                        rhs: c.floor[h] + base,
+                        coef: position.clone(),
+                    });
+                }
+            }
+            if let Some(frozen) = c.corrective {
+                if c.mean_occupancy[h].intersects(r.occupancy[h]) {
+                    out.push(Requirement {
+                        sv: i,
+                        step: h,
+                        band: true,
+                        rhs: frozen.release_m + l - sign * (c.mean_x[h] - coast),
+                        coef: position.clone(),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Behaviour, speed and comfort cost of a rollout (the part without slacks).
 pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
     let w = &problem.weights;
     let mut cost = 0.0;
@@ -54,6 +115,8 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
             cost += w.w_lane_change;
         }
         cost += w.w_speed * (problem.desired_speed - r.v[h]).abs();
+        cost += w.w_brake * (-r.accel[h]).max(0.0);
+        cost += w.w_hard_brake * (problem.comfort_decel - r.accel[h]).max(0.0);
     }
     if let Some(last) = r.maneuvers.last() {
         cost += problem.lane_value[(last.lane - 1) as usize];
@@ -61,62 +124,51 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
     cost
 }
 
-/// Evaluate `actions`; `None` if `clip` discards an action or a constraint cannot be met.
-pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Evaluation> {
-    let r = rollout(
-        &problem.kin,
-        problem.lanes,
-        problem.start,
-        problem.x0,
-        problem.v0,
-        problem.occupancy0,
-        actions,
-    )?;
-    let tol = problem.tolerance;
+/// Cost and slacks of a rollout at its own accelerations; `None` if a row cannot be met.
+fn score(problem: &Problem, r: Rollout, rows: &[Requirement], mode: Mode, tol: f64) -> Option<Evaluation> {
     if r.v.iter().any(|&v| v < -tol || v > problem.speed_cap + tol) {
         return None;
     }
-    let horizon = actions.len();
+    let horizon = problem.horizon;
+    let cells = problem.svs.len() * horizon;
+    let (mut need_hard, mut need_band) = (vec![f64::NEG_INFINITY; cells], vec![f64::NEG_INFINITY; cells]);
+    for row in rows {
+        let cell = row.sv * horizon + row.step;
+        let need = if row.band { &mut need_band } else { &mut need_hard };
+        need[cell] = need[cell].max(row.shortfall(&r.accel));
+    }
     let w = &problem.weights;
     let mut cost = maneuver_cost(problem, &r);
-    let mut hysteresis_slack = vec![0.0; problem.svs.len() * horizon];
-    let mut global_slack = vec![0.0; problem.svs.len() * horizon];
-    for (i, c) in problem.svs.iter().enumerate() {
-        for h in 0..horizon {
-            let need_hard = shortfall(problem, i, h, r.x[h], r.occupancy[h], c.hard[h]);
-            let Some(need_hard) = need_hard else {
-                continue; // no shared lane at this step
-            };
-            // The band holds on the mean prediction, where its lanes meet the ego's.
-            let need_hys = match c.corrective {
-                Some(frozen) if c.mean_occupancy[h].intersects(r.occupancy[h]) => {
-                    frozen.release_m - c.gap(c.mean_x[h], r.x[h], problem.length)
-                }
-                _ => f64::NEG_INFINITY,
-            };
-            let d_hs = c.slack_bound();
-            let (slack_h, slack_g) = match mode {
-                Mode::Nominal => {
-                    if need_hard > tol || need_hys > d_hs + tol {
-                        return None;
-                    }
-                    (need_hys.clamp(0.0, d_hs), 0.0)
-                }
-                Mode::Relaxed => {
-                    // w_q > w_s: use the cheaper hysteresis slack first, the global slack only
-                    // for what the hard row or the band cannot absorb.
-                    let g = need_hard.max(need_hys - d_hs).max(0.0);
-                    if g > c.relax_bound + tol {
-                        return None;
-                    }
-                    let g = g.min(c.relax_bound);
-                    ((need_hys - g).clamp(0.0, d_hs), g)
-                }
-            };
-            hysteresis_slack[i * horizon + h] = slack_h;
-            global_slack[i * horizon + h] = slack_g;
-            cost += w.w_slack * slack_h + w.w_global * slack_g;
+    let mut hysteresis_slack = vec![0.0; cells];
+    let mut global_slack = vec![0.0; cells];
+    for cell in 0..cells {
+        let (hard, band) = (need_hard[cell], need_band[cell]);
+        if hard == f64::NEG_INFINITY && band == f64::NEG_INFINITY {
+            continue;
         }
+        let c = &problem.svs[cell / horizon];
+        let d_hs = c.slack_bound();
+        let (slack_h, slack_g) = match mode {
+            Mode::Nominal => {
+                if hard > tol || band > d_hs + tol {
+                    return None;
+                }
+                (band.clamp(0.0, d_hs), 0.0)
+            }
+            Mode::Relaxed => {
+                // w_q > w_s: use the cheaper hysteresis slack first, the global slack only for
+                // what the hard rows or the band cannot absorb.
+                let g = hard.max(band - d_hs).max(0.0);
+                if g > c.relax_bound + tol {
+                    return None;
+                }
+                let g = g.min(c.relax_bound);
+                ((band - g).clamp(0.0, d_hs), g)
+            }
+        };
+        hysteresis_slack[cell] = slack_h;
+        global_slack[cell] = slack_g;
+        cost += w.w_slack * slack_h + w.w_global * slack_g;
     }
     Some(Evaluation {
         cost,
@@ -124,4 +176,104 @@ pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Eva
         hysteresis_slack,
         global_slack,
     })
+}
+
+thread_local! {
+    /// The LP solver of this thread's exact evaluations (HiGHS keeps per-thread state).
+    static LP: RefCell<Option<HighsSolver>> = const { RefCell::new(None) };
+}
+
+/// Best accelerations for the fixed sequence `r` (an LP), or `None` when no acceleration
+/// within the states' ranges meets the rows.
+fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> Option<Vec<f64>> {
+    let kin = &problem.kin;
+    let w = &problem.weights;
+    let (h_len, dt, v0) = (problem.horizon, kin.dt, problem.ego.v);
+    let mut m = MipModel::default();
+    let u: Vec<usize> = r
+        .maneuvers
+        .iter()
+        .map(|mv| {
+            let (lo, hi) = kin.bounds_of(mv.beta);
+            m.add_col(0.0, lo, hi, false)
+        })
+        .collect();
+    for h in 0..h_len {
+        let mut speed: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, dt)).collect();
+        m.add_row(-v0, problem.speed_cap - v0, &mut speed.clone());
+        let dev = m.add_col(w.w_speed, 0.0, f64::INFINITY, false);
+        speed.push((dev, 1.0));
+        m.add_row(problem.desired_speed - v0, f64::INFINITY, &mut speed);
+        let mut down: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, -dt)).collect();
+        down.push((dev, 1.0));
+        m.add_row(v0 - problem.desired_speed, f64::INFINITY, &mut down);
+        let brake = m.add_col(w.w_brake, 0.0, f64::INFINITY, false);
+        m.add_row(0.0, f64::INFINITY, &mut [(brake, 1.0), (u[h], 1.0)]);
+        let hard = m.add_col(w.w_hard_brake, 0.0, f64::INFINITY, false);
+        m.add_row(problem.comfort_decel, f64::INFINITY, &mut [(hard, 1.0), (u[h], 1.0)]);
+    }
+    let cells = problem.svs.len() * h_len;
+    let (mut hys, mut glob) = (vec![None; cells], vec![None; cells]);
+    for row in rows {
+        let cell = row.sv * h_len + row.step;
+        let c = &problem.svs[row.sv];
+        let mut terms: Vec<(usize, f64)> = row.coef.iter().enumerate().map(|(j, &k)| (u[j], k)).collect();
+        if row.band {
+            let col = *hys[cell].get_or_insert_with(|| m.add_col(w.w_slack, 0.0, c.slack_bound(), false));
+            terms.push((col, 1.0));
+        }
+        if mode == Mode::Relaxed {
+            let col = *glob[cell].get_or_insert_with(|| m.add_col(w.w_global, 0.0, c.relax_bound, false));
+            terms.push((col, 1.0));
+        }
+        m.add_row(row.rhs, f64::INFINITY, &mut terms);
+    }
+    LP.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        if slot.is_none() {
+            // No time limit: HiGHS's LP clock runs on across the runs of one instance, so any
+            // finite limit would eventually stop every LP of a long-lived thread.
+            *slot = Some(HighsSolver::new(f64::INFINITY).expect("HiGHS instance for the exact evaluation"));
+        }
+        let solver = slot.as_mut().expect("just created");
+        let result = solver.solve(&m, None).expect("HiGHS LP of the exact evaluation");
+        match (result.status, result.columns) {
+            (MipStatus::Optimal, Some(cols)) => Some(u.iter().map(|&c| cols[c]).collect()),
+            (status, _) => {
+                if std::env::var("HMDP_DEBUG_LP").is_ok() && status != MipStatus::Infeasible {
+                    eprintln!("LP status {status:?}");
+                }
+                None
+            }
+        }
+    })
+}
+
+/// Evaluate `actions`; `None` if `clip` discards an action or a constraint cannot be met.
+pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Evaluation> {
+    let r = rollout(&problem.kin, problem.lanes, &problem.ego, actions)?;
+    let rows = requirements(problem, &r);
+    if !problem.kin.is_continuous() {
+        return score(problem, r, &rows, mode, problem.tolerance);
+    }
+    let accel = best_accelerations(problem, &r, &rows, mode)?;
+    let r = r.with_accelerations(&problem.kin, &problem.ego, &accel);
+    // The LP's point meets its rows within HiGHS's feasibility tolerance (1e-7 on rows that
+    // carry metres); score it with a little more room than that.
+    score(problem, r, &rows, mode, problem.tolerance.max(1e-5))
+}
+
+/// Evaluate `actions` at given accelerations (one per step), as the MILP's plan comes back.
+pub fn evaluate_at(problem: &Problem, actions: &[Action], accel: &[f64], mode: Mode) -> Option<Evaluation> {
+    let r = rollout(&problem.kin, problem.lanes, &problem.ego, actions)?;
+    let within = r.maneuvers.iter().zip(accel).all(|(m, &a)| {
+        let (lo, hi) = problem.kin.bounds_of(m.beta);
+        a >= lo - 1e-7 && a <= hi + 1e-7
+    });
+    if !within {
+        return None;
+    }
+    let rows = requirements(problem, &r);
+    let r = r.with_accelerations(&problem.kin, &problem.ego, accel);
+    score(problem, r, &rows, mode, problem.tolerance.max(1e-5))
 }

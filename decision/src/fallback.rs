@@ -3,6 +3,7 @@
 use crate::config::PlannerConfig;
 use crate::idm::idm_distance;
 use crate::lanes::{lanes_at, LaneSet};
+use crate::model::Kinematics;
 use crate::types::{Beta, Situation, Threat};
 
 /// The fallback's choice: the new `beta` and the threat that decided it.
@@ -14,20 +15,53 @@ pub struct FallbackChoice {
     pub sv_id: Option<u32>,
     /// Its time to collision, s (infinite when not closing).
     pub ttc_s: f64,
+    /// Braking the threat asks for to keep the jam distance, m/s^2 (0 unless `Front`).
+    pub needed_decel_mps2: f64,
 }
 
-/// Pick the most critical SV by time to collision among those sharing a lane with the ego
-/// (`occupancy0`): a front SV closing in means decelerate, a rear SV closing in means
-/// accelerate. With none closing, the SV sharing a lane that is deepest inside its IDM
-/// distance is the threat (the fallback runs because some margin is violated, and holding
-/// speed would keep it violated). Failing that, an SV alongside in an adjacent lane is a
-/// lateral risk: hold speed. With nothing at all, hold speed.
+/// One SV sharing a lane with the ego, as the fallback sees it.
+struct Candidate {
+    id: u32,
+    gap: f64,
+    closing: f64,
+    /// How far inside its IDM distance it is (negative: outside).
+    deficit: f64,
+}
+
+impl Candidate {
+    fn ttc(&self) -> f64 {
+        if self.gap <= 0.0 {
+            0.0
+        } else if self.closing > 0.0 {
+            self.gap / self.closing
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// Most critical first: smallest TTC, then deepest inside its IDM distance, then id.
+    fn more_critical(&self, other: &Candidate) -> bool {
+        (self.ttc(), -self.deficit, self.id) < (other.ttc(), -other.deficit, other.id)
+    }
+}
+
+/// The paper's three cases, in this priority:
+///
+/// 1. **Front vehicle braking / too close**: an SV ahead in a lane the ego occupies
+///    (`occupancy0`) that is inside its IDM distance (the distance includes the closing-speed
+///    term, so a fast approach counts): decelerate. The most critical by time to collision
+///    decides. While any front SV is inside its IDM distance the fallback never accelerates.
+/// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
+///    inside its IDM distance: accelerate.
+/// 3. **Lateral risk**: otherwise, an SV alongside in an adjacent lane: hold speed.
+///
+/// With nothing at all, hold speed.
 pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> FallbackChoice {
     let ego = &s.ego;
     let length = config.vehicle.length_m;
     let tol = config.vehicle.lane_centre_tolerance_m;
-    let mut best: Option<(f64, u8, f64, Threat, u32)> = None; // (ttc, rank, gap, threat, id)
-    let mut too_close: Option<(f64, Threat, u32)> = None; // (IDM deficit, threat, id)
+    let mut front: Option<Candidate> = None;
+    let mut rear: Option<Candidate> = None;
     let mut lateral: Option<u32> = None;
     for sv in &s.svs {
         let dx = sv.x_m - ego.x_m;
@@ -38,35 +72,26 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             continue;
         };
         if lanes.intersects(occupancy0) {
-            let (threat, rank, gap, closing) = if dx >= 0.0 {
-                (Threat::Front, 0, dx - length, ego.v_mps - sv.v_mps)
-            } else {
-                (Threat::Rear, 1, -dx - length, sv.v_mps - ego.v_mps)
-            };
-            let ttc = if gap <= 0.0 {
-                0.0
-            } else if closing > 0.0 {
-                gap / closing
-            } else {
-                f64::INFINITY
-            };
-            if ttc.is_finite() {
-                let key = (ttc, rank, gap, threat, sv.id);
-                let better = best
-                    .as_ref()
-                    .is_none_or(|b| (key.0, key.1, key.2, key.4) < (b.0, b.1, b.2, b.4));
-                if better {
-                    best = Some(key);
+            if dx >= 0.0 {
+                let c = Candidate {
+                    id: sv.id,
+                    gap: dx - length,
+                    closing: ego.v_mps - sv.v_mps,
+                    deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
+                };
+                if c.deficit > 0.0 && front.as_ref().is_none_or(|f| c.more_critical(f)) {
+                    front = Some(c);
                 }
             } else {
-                let d_idm = if threat == Threat::Front {
-                    idm_distance(&config.idm, ego.v_mps, sv.v_mps)
-                } else {
-                    idm_distance(&config.idm, sv.v_mps, ego.v_mps)
+                let c = Candidate {
+                    id: sv.id,
+                    gap: -dx - length,
+                    closing: sv.v_mps - ego.v_mps,
+                    deficit: idm_distance(&config.idm, sv.v_mps, ego.v_mps) - (-dx - length),
                 };
-                let deficit = d_idm - gap;
-                if deficit > 0.0 && too_close.is_none_or(|t| deficit > t.0 || (deficit == t.0 && sv.id < t.2)) {
-                    too_close = Some((deficit, threat, sv.id));
+                let threat = c.closing > 0.0 || c.deficit > 0.0;
+                if threat && rear.as_ref().is_none_or(|r| c.more_critical(r)) {
+                    rear = Some(c);
                 }
             }
         } else {
@@ -78,28 +103,53 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             }
         }
     }
-    let longitudinal = best
-        .map(|(ttc, _, _, threat, id)| (ttc, threat, id))
-        .or(too_close.map(|(_, threat, id)| (f64::INFINITY, threat, id)));
-    match (longitudinal, lateral) {
-        (Some((ttc, threat, id)), _) => FallbackChoice {
-            beta: if threat == Threat::Front { -1 } else { 1 },
-            threat,
-            sv_id: Some(id),
-            ttc_s: ttc,
+    if let Some(f) = front {
+        // Constant deceleration that stops the closing within the gap beyond the jam distance.
+        let room = (f.gap - config.idm.jam_distance_m).max(0.5);
+        let needed = if f.closing > 0.0 {
+            -f.closing * f.closing / (2.0 * room)
+        } else {
+            0.0
+        };
+        return FallbackChoice {
+            beta: -1,
+            threat: Threat::Front,
+            sv_id: Some(f.id),
+            ttc_s: f.ttc(),
+            needed_decel_mps2: needed,
+        };
+    }
+    if let Some(r) = rear {
+        return FallbackChoice {
+            beta: 1,
+            threat: Threat::Rear,
+            sv_id: Some(r.id),
+            ttc_s: r.ttc(),
+            needed_decel_mps2: 0.0,
+        };
+    }
+    FallbackChoice {
+        beta: 0,
+        threat: if lateral.is_some() {
+            Threat::Lateral
+        } else {
+            Threat::None
         },
-        (None, Some(id)) => FallbackChoice {
-            beta: 0,
-            threat: Threat::Lateral,
-            sv_id: Some(id),
-            ttc_s: f64::INFINITY,
-        },
-        (None, None) => FallbackChoice {
-            beta: 0,
-            threat: Threat::None,
-            sv_id: None,
-            ttc_s: f64::INFINITY,
-        },
+        sv_id: lateral,
+        ttc_s: f64::INFINITY,
+        needed_decel_mps2: 0.0,
+    }
+}
+
+/// The fallback's acceleration: the state's representative one, braking harder (down to the
+/// range of `beta = -1`) when the front threat needs it.
+pub fn acceleration(kin: &Kinematics, choice: &FallbackChoice) -> f64 {
+    let (lo, hi) = kin.bounds_of(choice.beta);
+    let nominal = kin.accel_of(choice.beta).clamp(lo, hi);
+    if choice.threat == Threat::Front {
+        nominal.min(choice.needed_decel_mps2).clamp(lo, hi)
+    } else {
+        nominal
     }
 }
 
@@ -158,6 +208,7 @@ mod tests {
         let c = PlannerConfig::default();
         // Gap 15 m, closing 5 m/s: TTC 3 s. Rear SV: gap 25 m, closing 2 m/s: TTC 12.5 s.
         let s = situation(vec![sv(1, 120.0, 4.0, 15.0), sv(2, 70.0, 4.0, 22.0)]);
+        // Needed: 25 / (2 * 13) = 0.96 m/s^2, below the representative -3.
         let f = choose(&c, &s, LaneSet::single(2));
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
         assert!((f.ttc_s - 3.0).abs() < 1e-12);

@@ -15,6 +15,42 @@ pub fn hard_margin(d_idm: f64, z_eps: f64, sigma_delta: f64) -> f64 {
     d_idm + z_eps * sigma_delta.sqrt()
 }
 
+/// Hard margins linearised in the ego's speed, for `idm.speed_dependent`: per branch and step
+/// the unfloored IDM distance at the ego's current speed `v0` (and the branch's speed) plus the
+/// quantile term `sigmas[h]`, and the common slope `d margin / d v_ego` (the floor at `d0` is a
+/// row of its own). As follower: `T + (2 v0 - v_sv) / (2 sqrt(a b))`, never negative (slowing
+/// down never widens the margin); as leader the distance is linear in the ego's speed with
+/// slope `-v_sv / (2 sqrt(a b))`.
+pub fn linearised_margins(
+    p: &IdmParams,
+    ego_follows: bool,
+    v0: f64,
+    v_sv: f64,
+    branch_speeds: &[Vec<f64>],
+    sigmas: &[f64],
+) -> (Vec<Vec<f64>>, f64) {
+    let root = 2.0 * (p.max_accel_mps2 * p.comfort_decel_mps2).sqrt();
+    let margins = branch_speeds
+        .iter()
+        .map(|speeds| {
+            sigmas
+                .iter()
+                .zip(speeds)
+                .map(|(&s, &vb)| {
+                    let (vf, vl) = if ego_follows { (v0, vb) } else { (vb, v0) };
+                    p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root + s
+                })
+                .collect()
+        })
+        .collect();
+    let slope = if ego_follows {
+        (p.time_headway_s + (2.0 * v0 - v_sv) / root).max(0.0)
+    } else {
+        -v_sv / root
+    };
+    (margins, slope)
+}
+
 /// Trigger and release distances of the hysteresis for one SV at one decision.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Thresholds {
@@ -49,6 +85,28 @@ mod tests {
         assert_eq!(idm_distance(&p, 5.0, 40.0), 2.0);
         // Standing still: d0.
         assert_eq!(idm_distance(&p, 0.0, 10.0), 2.0);
+    }
+
+    #[test]
+    fn linearised_margins_by_hand() {
+        let p = IdmParams::default();
+        let root = 2.0 * 3.0f64.sqrt();
+        // Ego at 20 following an SV at 15 (branch speed 14 at the step): unfloored IDM
+        // 2 + 30 + 20 * 6 / root; slope 1.5 + 25 / root.
+        let (m, slope) = linearised_margins(&p, true, 20.0, 15.0, &[vec![14.0]], &[1.0]);
+        assert!((m[0][0] - (33.0 + 120.0 / root)).abs() < 1e-9);
+        assert!((slope - (1.5 + 25.0 / root)).abs() < 1e-12);
+        // The tangent is exact at v0 and below the convex IDM distance elsewhere.
+        let exact = |v: f64| 2.0 + 1.5 * v + v * (v - 14.0) / root + 1.0;
+        assert!((m[0][0] - exact(20.0)).abs() < 1e-9);
+        assert!(m[0][0] + slope * (18.0 - 20.0) <= exact(18.0) + (15.0 - 14.0) * 2.0 / root + 1e-9);
+        // SV at 25 following the ego at 20: linear in the ego speed, slope -25 / root.
+        let (m, slope) = linearised_margins(&p, false, 20.0, 25.0, &[vec![25.0]], &[0.0]);
+        assert!((m[0][0] - (2.0 + 37.5 + 125.0 / root)).abs() < 1e-9);
+        assert!((slope + 25.0 / root).abs() < 1e-12);
+        // A slow ego behind a fast SV: the follower slope is clamped at zero.
+        let (_, slope) = linearised_margins(&p, true, 5.0, 40.0, &[vec![40.0]], &[0.0]);
+        assert_eq!(slope, 0.0);
     }
 
     #[test]

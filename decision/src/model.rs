@@ -66,19 +66,41 @@ pub fn transition(m: Maneuver, d: Action, lanes: u8) -> Option<Maneuver> {
     Some(Maneuver { lane: lane as u8, beta })
 }
 
+/// Where a rollout starts: the ego's maneuver, position, speed and occupied lanes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EgoStart {
+    pub maneuver: Maneuver,
+    pub x: f64,
+    pub v: f64,
+    /// Lanes the ego occupies now (body and target lane).
+    pub occupancy: LaneSet,
+}
+
 /// Longitudinal kinematics of the maps `f^sigma`.
 #[derive(Debug, Clone, Copy)]
 pub struct Kinematics {
     pub dt: f64,
-    /// Acceleration for `beta = -1, 0, +1`.
+    /// Acceleration for `beta = -1, 0, +1` of the discrete maps (and the SVs' branches).
     pub accel: [f64; 3],
+    /// Range of the ego's kinematic input `u` for `beta = -1, 0, +1`; a single point per state
+    /// without `ego.continuous_accel`.
+    pub bounds: [(f64, f64); 3],
 }
 
 impl Kinematics {
     pub fn new(config: &PlannerConfig) -> Self {
+        let e = &config.ego;
+        let accel = [e.decel_mps2, 0.0, e.accel_mps2];
+        let bounds = if e.continuous_accel {
+            let band = e.cruise_band_mps2;
+            [(e.max_decel_mps2, -band), (-band, band), (band, e.accel_mps2)]
+        } else {
+            accel.map(|a| (a, a))
+        };
         Self {
             dt: config.timing.step_s,
-            accel: [config.ego.decel_mps2, 0.0, config.ego.accel_mps2],
+            accel,
+            bounds,
         }
     }
 
@@ -86,10 +108,40 @@ impl Kinematics {
         self.accel[(beta + 1) as usize]
     }
 
+    /// Range of `u` in maneuver state `beta`.
+    pub fn bounds_of(&self, beta: Beta) -> (f64, f64) {
+        self.bounds[(beta + 1) as usize]
+    }
+
+    /// Whether some state leaves the MPC a choice of acceleration.
+    pub fn is_continuous(&self) -> bool {
+        self.bounds.iter().any(|(lo, hi)| lo < hi)
+    }
+
+    /// Smallest and largest acceleration of any state.
+    pub fn extreme_accels(&self) -> (f64, f64) {
+        (self.bounds[0].0, self.bounds[2].1)
+    }
+
+    /// One step at acceleration `a`.
+    pub fn step_with(&self, x: f64, v: f64, a: f64) -> (f64, f64) {
+        (x + v * self.dt + 0.5 * a * self.dt * self.dt, v + a * self.dt)
+    }
+
     /// One step of `f^sigma`: the acceleration is that of the *next* maneuver state.
     pub fn step(&self, x: f64, v: f64, beta_next: Beta) -> (f64, f64) {
-        let a = self.accel_of(beta_next);
-        (x + v * self.dt + 0.5 * a * self.dt * self.dt, v + a * self.dt)
+        self.step_with(x, v, self.accel_of(beta_next))
+    }
+
+    /// `d x_h / d u_j` for `j <= h` (0-based steps): position after step `h` is
+    /// `x0 + (h + 1) v0 dt + sum_j position_gain(h, j) u_j`.
+    pub fn position_gain(&self, h: usize, j: usize) -> f64 {
+        self.dt * self.dt * ((h - j) as f64 + 0.5)
+    }
+
+    /// Position after step `h` at zero acceleration.
+    pub fn coasting_position(&self, start: &EgoStart, h: usize) -> f64 {
+        start.x + (h + 1) as f64 * self.dt * start.v
     }
 }
 
@@ -99,6 +151,8 @@ pub struct Rollout {
     pub actions: Vec<Action>,
     /// Maneuver after each step (`m_1..m_H`).
     pub maneuvers: Vec<Maneuver>,
+    /// Acceleration applied in each step.
+    pub accel: Vec<f64>,
     /// Position and speed after each step.
     pub x: Vec<f64>,
     pub v: Vec<f64>,
@@ -107,30 +161,41 @@ pub struct Rollout {
     pub occupancy: Vec<LaneSet>,
 }
 
-/// Roll a given action sequence out; `None` if `clip` discards one of its actions.
-pub fn rollout(
-    kin: &Kinematics,
-    lanes: u8,
-    start: Maneuver,
-    x0: f64,
-    v0: f64,
-    occupancy0: LaneSet,
-    actions: &[Action],
-) -> Option<Rollout> {
+impl Rollout {
+    /// The same maneuvers driven at other accelerations (one per step).
+    pub fn with_accelerations(&self, kin: &Kinematics, start: &EgoStart, accel: &[f64]) -> Rollout {
+        let mut out = self.clone();
+        let (mut x, mut v) = (start.x, start.v);
+        for (h, &a) in accel.iter().enumerate() {
+            (x, v) = kin.step_with(x, v, a);
+            out.accel[h] = a;
+            out.x[h] = x;
+            out.v[h] = v;
+        }
+        out
+    }
+}
+
+/// Roll a given action sequence out at each state's representative acceleration; `None` if
+/// `clip` discards one of its actions.
+pub fn rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, actions: &[Action]) -> Option<Rollout> {
     let h = actions.len();
     let mut out = Rollout {
         actions: actions.to_vec(),
         maneuvers: Vec::with_capacity(h),
+        accel: Vec::with_capacity(h),
         x: Vec::with_capacity(h),
         v: Vec::with_capacity(h),
         occupancy: Vec::with_capacity(h),
     };
-    let (mut m, mut x, mut v, mut occ) = (start, x0, v0, occupancy0);
+    let (mut m, mut x, mut v, mut occ) = (start.maneuver, start.x, start.v, start.occupancy);
     for &d in actions {
         m = transition(m, d, lanes)?;
-        (x, v) = kin.step(x, v, m.beta);
+        let a = kin.accel_of(m.beta);
+        (x, v) = kin.step_with(x, v, a);
         occ = occ.with(m.lane);
         out.maneuvers.push(m);
+        out.accel.push(a);
         out.x.push(x);
         out.v.push(v);
         out.occupancy.push(occ);
@@ -267,6 +332,7 @@ mod tests {
         let kin = Kinematics {
             dt: 0.4,
             accel: [-3.0, 0.0, 1.5],
+            bounds: [(-3.0, -3.0), (0.0, 0.0), (1.5, 1.5)],
         };
         let (x, v) = kin.step(100.0, 20.0, 1);
         assert!((x - (100.0 + 8.0 + 0.5 * 1.5 * 0.16)).abs() < 1e-12);
@@ -281,21 +347,29 @@ mod tests {
         let kin = Kinematics {
             dt: 0.4,
             accel: [-3.0, 0.0, 1.5],
+            bounds: [(-3.0, -3.0), (0.0, 0.0), (1.5, 1.5)],
         };
         let left = Action {
             lateral: -1,
             longitudinal: 0,
         };
-        let r = rollout(
-            &kin,
-            3,
-            m(2, 0),
-            0.0,
-            10.0,
-            LaneSet::single(2),
-            &[Action::KEEP, left, Action::KEEP],
-        )
-        .unwrap();
+        let start = EgoStart {
+            maneuver: m(2, 0),
+            x: 0.0,
+            v: 10.0,
+            occupancy: LaneSet::single(2),
+        };
+        let r = rollout(&kin, 3, &start, &[Action::KEEP, left, Action::KEEP]).unwrap();
+        let slow = r.with_accelerations(&kin, &start, &[0.0, -1.0, -1.0]);
+        assert!((slow.v[2] - 9.2).abs() < 1e-12);
+        // x after 3 steps: 12 + sum_j gain(2, j) u_j = 12 - 0.16 * (1.5 + 0.5).
+        assert!((slow.x[2] - (12.0 - 0.32)).abs() < 1e-12);
+        assert!(
+            (kin.coasting_position(&start, 2) + kin.position_gain(2, 1) * -1.0 + kin.position_gain(2, 2) * -1.0
+                - slow.x[2])
+                .abs()
+                < 1e-12
+        );
         assert_eq!(r.occupancy[0], LaneSet::single(2));
         assert_eq!(r.occupancy[1], LaneSet::single(1).with(2));
         assert_eq!(r.occupancy[2], LaneSet::single(1).with(2));

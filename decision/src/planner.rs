@@ -165,7 +165,7 @@ impl Planner {
 /// current speed to the step's speed in one period.
 fn setpoint_of(problem: &Problem, first: &PlanStep) -> SetPoint {
     SetPoint {
-        accel_mps2: (first.v_mps - problem.v0) / problem.kin.dt,
+        accel_mps2: (first.v_mps - problem.ego.v) / problem.kin.dt,
         target_speed_mps: first.v_mps,
     }
 }
@@ -178,7 +178,7 @@ pub(crate) fn fallback_decision(
     mut stats: SolveStats,
     mut memory: crate::types::PlannerMemory,
 ) -> Decision {
-    let choice = fallback::choose(config, situation, problem.occupancy0);
+    let choice = fallback::choose(config, situation, problem.ego.occupancy);
     stats.fallback_threat = Some(choice.threat);
     memory.previous_plan.clear();
     let start = situation.ego.maneuver;
@@ -193,11 +193,12 @@ pub(crate) fn fallback_decision(
         lateral: (i16::from(next.lane) - i16::from(start.lane)).signum() as i8,
         longitudinal: (choice.beta - start.beta).clamp(-1, 1),
     };
+    let accel = fallback::acceleration(&problem.kin, &choice);
     let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);
-    let mut occupancy = problem.occupancy0;
+    let mut occupancy = problem.ego.occupancy;
     let plan: Vec<PlanStep> = (0..config.timing.horizon)
         .map(|h| {
-            (x, v) = problem.kin.step(x, v, next.beta);
+            (x, v) = problem.kin.step_with(x, v, accel);
             v = v.clamp(0.0, problem.speed_cap);
             occupancy = occupancy.with(next.lane);
             PlanStep {
@@ -213,7 +214,10 @@ pub(crate) fn fallback_decision(
     Decision {
         action: first,
         next_maneuver: next,
-        setpoint: setpoint_of(problem, &plan[0]),
+        setpoint: SetPoint {
+            accel_mps2: accel,
+            target_speed_mps: plan[0].v_mps,
+        },
         plan,
         layer: Layer::Fallback,
         stats,

@@ -4,22 +4,38 @@
 
 use crate::config::{CostWeights, PlannerConfig};
 use crate::hysteresis;
-use crate::idm::{hard_margin, idm_distance, thresholds};
+use crate::idm::{hard_margin, idm_distance, linearised_margins, thresholds};
 use crate::lanes::{lanes_at, nearest_lane, LaneSet};
-use crate::model::{rollout, Kinematics};
+use crate::model::{rollout, EgoStart, Kinematics, Rollout};
 use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches, Branch};
-use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Situation, SvObservation};
+use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situation, SvObservation};
 
 /// Safety data of one SV inside the perception window.
+///
+/// The hard row of branch `b` at step `h` (0-based) reads
+/// `gap_b(h) >= margin[b][h] + slope * (v_h - v_0) - allowance[h]`, together with the floor
+/// `gap_b(h) >= floor[h] - allowance[h]`; `gap` is the signed bumper-to-bumper distance and
+/// `v_h` the ego's speed after step `h`.
 #[derive(Debug, Clone)]
 pub struct SvConstraint {
     pub id: u32,
     /// `s = +1`: the SV is ahead of the ego (the ego follows it); `-1`: behind.
     pub ahead: bool,
+    /// IDM distance at the measured speeds.
     pub d_idm: f64,
-    /// `d_hc(h)` for `h = 1..=H`.
+    /// `d_hc(h)` at the measured speeds for `h = 1..=H` (the hysteresis thresholds use it).
     pub hard: Vec<f64>,
-    /// Frozen thresholds while in corrective mode (only for SVs ahead).
+    /// Hard margin per branch and step at the ego's current speed, `[b][h]`.
+    pub margin: Vec<Vec<f64>>,
+    /// Jam-distance floor per step, `d0 + z sqrt(Sigma(h))`.
+    pub floor: Vec<f64>,
+    /// Sensitivity of the margin to the ego's speed (0 without `idm.speed_dependent`).
+    pub slope: f64,
+    /// How far the rows may still be violated per step when the SV is inside its margin now.
+    pub allowance: Vec<f64>,
+    /// No rows in the lanes the ego occupies now (a follower there keeps its own gap).
+    pub exempt_in_own_lanes: bool,
+    /// Thresholds in force while in corrective mode (only for SVs ahead).
     pub corrective: Option<CorrectiveEntry>,
     /// Layer A bound on the global slack, `gamma * d_idm`.
     pub relax_bound: f64,
@@ -29,7 +45,7 @@ pub struct SvConstraint {
     pub mean_x: Vec<f64>,
     pub mean_occupancy: Vec<LaneSet>,
     /// Bound on the hysteresis slack (0 unless corrective): `d_HS`, or with
-    /// `hysteresis.soft_band` at least down to the hard margin.
+    /// `hysteresis.soft_band` at least down to the hard rows' weakest demand.
     pub slack_max: f64,
     pub branches: Vec<Branch>,
 }
@@ -37,13 +53,40 @@ pub struct SvConstraint {
 impl SvConstraint {
     /// Signed bumper-to-bumper gap to a branch position: positive when the SV keeps its side.
     pub fn gap(&self, sv_x: f64, ego_x: f64, length: f64) -> f64 {
-        let sign = if self.ahead { 1.0 } else { -1.0 };
-        sign * (sv_x - ego_x) - length
+        self.sign() * (sv_x - ego_x) - length
     }
 
-    /// Hysteresis slack bound `d_HS`.
+    /// `+1` ahead, `-1` behind.
+    pub fn sign(&self) -> f64 {
+        if self.ahead {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// Hysteresis slack bound.
     pub fn slack_bound(&self) -> f64 {
         self.slack_max
+    }
+
+    /// Lanes in which this SV's rows apply at a step where the ego occupies `ego`, given the
+    /// lanes `ego_now` it occupies at the decision.
+    pub fn binding_lanes(&self, ego: LaneSet, ego_now: LaneSet) -> LaneSet {
+        if self.exempt_in_own_lanes {
+            LaneSet(ego.0 & !ego_now.0)
+        } else {
+            ego
+        }
+    }
+
+    /// Whether the floor row can bind (it is implied when the margin never falls below it).
+    pub fn floor_matters(&self) -> bool {
+        self.slope != 0.0
+            || self
+                .margin
+                .iter()
+                .any(|m| m.iter().zip(&self.floor).any(|(m, f)| m < f))
     }
 }
 
@@ -54,16 +97,14 @@ pub struct Problem {
     pub horizon: usize,
     pub combined_actions: bool,
     pub kin: Kinematics,
-    pub start: Maneuver,
-    pub x0: f64,
-    pub v0: f64,
-    /// Lanes the ego occupies now (body and target lane).
-    pub occupancy0: LaneSet,
+    pub ego: EgoStart,
     pub desired_speed: f64,
     /// Upper speed bound: the speed limit, or the current speed if already above it, so that
     /// holding speed is always admissible.
     pub speed_cap: f64,
     pub length: f64,
+    /// Braking beyond this is priced by `w_hard_brake`, m/s^2.
+    pub comfort_decel: f64,
     pub weights: CostWeights,
     /// Terminal cost of ending the horizon in lane `l` (index `l - 1`).
     pub lane_value: Vec<f64>,
@@ -80,16 +121,8 @@ pub struct Prepared {
 
 /// The ego's rollout when it resumes accelerating: `beta` steps up by one each step until it
 /// reaches +1, in its target lane.
-fn resuming_rollout(
-    kin: &Kinematics,
-    lanes: u8,
-    start: Maneuver,
-    x0: f64,
-    v0: f64,
-    occupancy0: LaneSet,
-    horizon: usize,
-) -> crate::model::Rollout {
-    let mut beta = start.beta;
+fn resuming_rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, horizon: usize) -> Rollout {
+    let mut beta = start.maneuver.beta;
     let actions: Vec<Action> = (0..horizon)
         .map(|_| {
             let up = i8::from(beta < 1);
@@ -100,7 +133,21 @@ fn resuming_rollout(
             }
         })
         .collect();
-    rollout(kin, lanes, start, x0, v0, occupancy0, &actions).expect("stepping beta up to +1 is admissible")
+    rollout(kin, lanes, start, &actions).expect("stepping beta up to +1 is admissible")
+}
+
+/// Everything the prepared problem needs to know about the ego and the model.
+struct Context<'a> {
+    config: &'a PlannerConfig,
+    road: &'a Road,
+    kin: Kinematics,
+    start: EgoStart,
+    /// `z_eps sqrt(Sigma_Delta(h))` and `Sigma_Delta(h)` per step.
+    sigmas: Vec<f64>,
+    variances: Vec<f64>,
+    z: f64,
+    nominal: Rollout,
+    release_rollout: Rollout,
 }
 
 /// Build the problem. The situation must have passed `validate`.
@@ -108,135 +155,60 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
     let road = &s.road;
     let kin = Kinematics::new(config);
     let tol = config.vehicle.lane_centre_tolerance_m;
-    let length = config.vehicle.length_m;
+    let horizon = config.timing.horizon;
     let ego = &s.ego;
     let body = lanes_at(road, ego.y_m, tol).expect("validated");
-    let occupancy0 = body.with(ego.maneuver.lane);
+    let start = EgoStart {
+        maneuver: ego.maneuver,
+        x: ego.x_m,
+        v: ego.v_mps,
+        occupancy: body.with(ego.maneuver.lane),
+    };
     let z = config.z_epsilon();
     let variances = longitudinal_variances(config);
-
-    // Nominal ego rollout (keep lane and beta) for the hysteresis trigger, and the resuming
-    // rollout (beta stepping up to accelerating) for its release.
-    let keep = vec![Action::KEEP; config.timing.horizon];
-    let nominal = rollout(&kin, road.lanes, ego.maneuver, ego.x_m, ego.v_mps, occupancy0, &keep)
-        .expect("keeping is always admissible");
-    let resuming = resuming_rollout(
-        &kin,
-        road.lanes,
-        ego.maneuver,
-        ego.x_m,
-        ego.v_mps,
-        occupancy0,
-        config.timing.horizon,
-    );
-
-    let in_window = |sv: &SvObservation| {
-        let dx = sv.x_m - ego.x_m;
-        dx <= config.perception.range_ahead_m && dx >= -config.perception.range_behind_m
+    // Nominal ego rollout (keep lane and beta) for the hysteresis trigger, and the rollout
+    // its release is checked on.
+    let keep = vec![Action::KEEP; horizon];
+    let nominal = rollout(&kin, road.lanes, &start, &keep).expect("keeping is always admissible");
+    let release_rollout = if config.hysteresis.release_on_resuming {
+        resuming_rollout(&kin, road.lanes, &start, horizon)
+    } else {
+        nominal.clone()
     };
-    let mut visible: Vec<&SvObservation> = s.svs.iter().filter(|sv| in_window(sv)).collect();
-    // The nearest `max_svs` are the relevant ones (ties by id, so the choice is deterministic).
-    visible.sort_by(|a, b| {
-        let (da, db) = ((a.x_m - ego.x_m).abs(), (b.x_m - ego.x_m).abs());
-        da.total_cmp(&db).then(a.id.cmp(&b.id))
-    });
-    visible.truncate(config.perception.max_svs);
-    visible.sort_by_key(|sv| sv.id);
+    let ctx = Context {
+        config,
+        road,
+        kin,
+        start,
+        sigmas: variances.iter().map(|&var| z * var.sqrt()).collect(),
+        variances,
+        z,
+        nominal,
+        release_rollout,
+    };
 
-    let mut svs = Vec::with_capacity(visible.len());
+    let mut svs = Vec::new();
     let mut corrective_entries = Vec::new();
-    for sv in visible {
-        let ahead = sv.x_m >= ego.x_m;
-        let d_idm = if ahead {
-            idm_distance(&config.idm, ego.v_mps, sv.v_mps)
-        } else {
-            idm_distance(&config.idm, sv.v_mps, ego.v_mps)
-        };
-        let hard: Vec<f64> = variances.iter().map(|&var| hard_margin(d_idm, z, var)).collect();
-        let sv_occ = lanes_at(road, sv.y_m, tol).expect("validated");
-        let start = Maneuver {
-            lane: nearest_lane(road, sv.y_m).expect("validated"),
-            beta: beta_from_accel(sv.a_mps2, config.prediction.accel_dead_band_mps2),
-        };
-        let branches = predict_branches(config, &kin, road.lanes, start, sv.x_m, sv.v_mps, sv_occ);
-        let mean_x: Vec<f64> = (0..config.timing.horizon)
-            .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())
-            .collect();
-        let mean_occupancy = branches[0].occupancy.clone();
-        let mut constraint = SvConstraint {
-            id: sv.id,
-            ahead,
-            d_idm,
-            hard,
-            corrective: None,
-            relax_bound: config.recovery.gamma * d_idm,
-            slack_max: 0.0,
-            mean_x,
-            mean_occupancy,
-            branches,
-        };
-        // Hysteresis concerns the SV the ego follows: ahead and in a lane the ego occupies now.
-        if config.hysteresis.enabled && ahead && sv_occ.intersects(occupancy0) {
-            let min_gap_on = |ego_x: &[f64]| {
-                (0..constraint.mean_x.len())
-                    .filter(|&h| constraint.mean_occupancy[h].intersects(nominal.occupancy[h]))
-                    .map(|h| constraint.gap(constraint.mean_x[h], ego_x[h], length))
-                    .reduce(f64::min)
-            };
-            let current = thresholds(&config.hysteresis, d_idm, constraint.hard[0]);
-            let previous = s.memory.corrective.iter().find(|e| e.sv_id == sv.id).copied();
-            constraint.corrective = hysteresis::refresh(
-                sv.id,
-                previous,
-                min_gap_on(&nominal.x),
-                min_gap_on(&resuming.x),
-                current,
-            );
-        }
+    for sv in relevant_svs(config, s) {
+        let constraint = sv_constraint(&ctx, sv, &s.memory);
         if let Some(entry) = constraint.corrective {
-            let band = entry.release_m - entry.trigger_m;
-            let to_hard = entry.release_m - constraint.hard.iter().copied().fold(f64::MIN, f64::max);
-            constraint.slack_max = if config.hysteresis.soft_band {
-                band.max(to_hard)
-            } else {
-                band
-            };
             corrective_entries.push(entry);
         }
         svs.push(constraint);
     }
 
-    // Speed the ego could hold in each lane beyond the horizon: its desired speed, or less when
-    // an SV ahead in that lane (within the lookahead) is slower.
-    let achievable: Vec<f64> = (1..=road.lanes)
-        .map(|lane| {
-            s.svs
-                .iter()
-                .filter(|sv| sv.x_m > ego.x_m && sv.x_m - ego.x_m <= config.cost.lane_lookahead_m)
-                .filter(|sv| lanes_at(road, sv.y_m, tol).is_ok_and(|occ| occ.contains(lane)))
-                .map(|sv| sv.v_mps)
-                .fold(ego.desired_speed_mps, f64::min)
-        })
-        .collect();
-    let lane_value: Vec<f64> = achievable
-        .iter()
-        .map(|v| config.cost.w_lane_speed * (ego.desired_speed_mps - v).max(0.0))
-        .collect();
-
     let problem = Problem {
         lanes: road.lanes,
-        horizon: config.timing.horizon,
+        horizon,
         combined_actions: config.ego.combined_actions,
         kin,
-        start: ego.maneuver,
-        x0: ego.x_m,
-        v0: ego.v_mps,
-        occupancy0,
+        ego: start,
         desired_speed: ego.desired_speed_mps,
         speed_cap: road.speed_limit_mps.max(ego.v_mps),
-        length,
+        length: config.vehicle.length_m,
+        comfort_decel: config.ego.comfort_decel_mps2,
         weights: config.cost.clone(),
-        lane_value,
+        lane_value: lane_values(config, s),
         svs,
         tolerance: config.solver.feasibility_tolerance,
     };
@@ -246,5 +218,177 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
             corrective: corrective_entries,
             previous_plan: Vec::new(),
         },
+    }
+}
+
+/// SVs inside the perception window, the nearest `max_svs` of them (ties by id, so the
+/// choice is deterministic), in id order.
+fn relevant_svs<'a>(config: &PlannerConfig, s: &'a Situation) -> Vec<&'a SvObservation> {
+    let ego = &s.ego;
+    let p = &config.perception;
+    let mut visible: Vec<&SvObservation> = s
+        .svs
+        .iter()
+        .filter(|sv| {
+            let dx = sv.x_m - ego.x_m;
+            dx <= p.range_ahead_m && dx >= -p.range_behind_m
+        })
+        .collect();
+    visible.sort_by(|a, b| {
+        let (da, db) = ((a.x_m - ego.x_m).abs(), (b.x_m - ego.x_m).abs());
+        da.total_cmp(&db).then(a.id.cmp(&b.id))
+    });
+    visible.truncate(p.max_svs);
+    visible.sort_by_key(|sv| sv.id);
+    visible
+}
+
+/// Prediction, margins and hysteresis state of one SV.
+fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> SvConstraint {
+    let config = ctx.config;
+    let road = ctx.road;
+    let tol = config.vehicle.lane_centre_tolerance_m;
+    let length = config.vehicle.length_m;
+    let horizon = config.timing.horizon;
+    let (x0, v0) = (ctx.start.x, ctx.start.v);
+    let occupancy0 = ctx.start.occupancy;
+    let ahead = sv.x_m >= x0;
+    let d_idm = if ahead {
+        idm_distance(&config.idm, v0, sv.v_mps)
+    } else {
+        idm_distance(&config.idm, sv.v_mps, v0)
+    };
+    let hard: Vec<f64> = ctx
+        .variances
+        .iter()
+        .map(|&var| hard_margin(d_idm, ctx.z, var))
+        .collect();
+    let sv_occ = lanes_at(road, sv.y_m, tol).expect("validated");
+    let sv_start = Maneuver {
+        lane: nearest_lane(road, sv.y_m).expect("validated"),
+        beta: beta_from_accel(sv.a_mps2, config.prediction.accel_dead_band_mps2),
+    };
+    let mut branches = predict_branches(config, &ctx.kin, road.lanes, sv_start, sv.x_m, sv.v_mps, sv_occ);
+    widen_by_lateral_motion(config, road, sv, &mut branches);
+    let mean_x: Vec<f64> = (0..horizon)
+        .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())
+        .collect();
+    let mean_occupancy = branches[0].occupancy.clone();
+    let (margin, slope) = if config.idm.speed_dependent {
+        let speeds: Vec<Vec<f64>> = branches.iter().map(|b| b.v.clone()).collect();
+        linearised_margins(&config.idm, ahead, v0, sv.v_mps, &speeds, &ctx.sigmas)
+    } else {
+        (vec![hard.clone(); branches.len()], 0.0)
+    };
+    let floor: Vec<f64> = ctx.sigmas.iter().map(|&s| config.idm.jam_distance_m + s).collect();
+    let exempt_in_own_lanes = !ahead && config.perception.rear_responsibility;
+    let sign = if ahead { 1.0 } else { -1.0 };
+    // Already inside the margin now, in a lane the ego occupies: the rows may stay violated by
+    // a decaying share of today's violation.
+    let violation_now = if sv_occ.intersects(occupancy0) && !exempt_in_own_lanes {
+        (hard[0].max(floor[0]) - (sign * (sv.x_m - x0) - length)).max(0.0)
+    } else {
+        0.0
+    };
+    let decay = config.idm.violation_decay;
+    let allowance: Vec<f64> = (1..=horizon as i32).map(|h| violation_now * decay.powi(h)).collect();
+    let mut c = SvConstraint {
+        id: sv.id,
+        ahead,
+        d_idm,
+        hard,
+        margin,
+        floor,
+        slope,
+        allowance,
+        exempt_in_own_lanes,
+        corrective: None,
+        relax_bound: config.recovery.gamma * d_idm,
+        slack_max: 0.0,
+        mean_x,
+        mean_occupancy,
+        branches,
+    };
+    // Hysteresis concerns the SV the ego follows: ahead and in a lane the ego occupies now.
+    if config.hysteresis.enabled && ahead && sv_occ.intersects(occupancy0) {
+        let min_gap_on = |r: &Rollout| {
+            (0..c.mean_x.len())
+                .filter(|&h| c.mean_occupancy[h].intersects(r.occupancy[h]))
+                .map(|h| c.gap(c.mean_x[h], r.x[h], length))
+                .reduce(f64::min)
+        };
+        let current = thresholds(&config.hysteresis, d_idm, c.hard[0]);
+        let mut previous = memory.corrective.iter().find(|e| e.sv_id == sv.id).copied();
+        if config.hysteresis.resize_release {
+            if let Some(frozen) = previous.as_mut() {
+                // At the leader's speed: the distance that is genuinely safe once the ego no
+                // longer closes in; never below today's own release distance.
+                let matched_idm = idm_distance(&config.idm, sv.v_mps, sv.v_mps);
+                let matched_hard = hard_margin(matched_idm, ctx.z, ctx.variances[0]);
+                let matched = thresholds(&config.hysteresis, matched_idm, matched_hard);
+                let release = frozen.release_m.min(current.release.max(matched.release));
+                let band = frozen.release_m - frozen.trigger_m;
+                frozen.release_m = release;
+                frozen.trigger_m = release - band;
+            }
+        }
+        c.corrective = hysteresis::refresh(
+            sv.id,
+            previous,
+            min_gap_on(&ctx.nominal),
+            min_gap_on(&ctx.release_rollout),
+            current,
+        );
+    }
+    if let Some(entry) = c.corrective {
+        let band = entry.release_m - entry.trigger_m;
+        let weakest = (0..horizon)
+            .map(|h| c.floor[h].min(c.hard[h]) - c.allowance[h])
+            .fold(f64::INFINITY, f64::min);
+        c.slack_max = if config.hysteresis.soft_band {
+            band.max(entry.release_m - weakest)
+        } else {
+            band
+        };
+    }
+    c
+}
+
+/// Terminal lane values: the speed the ego could hold in each lane beyond the horizon is its
+/// desired speed, or less when an SV ahead in that lane (within the lookahead) is slower.
+fn lane_values(config: &PlannerConfig, s: &Situation) -> Vec<f64> {
+    let (road, ego) = (&s.road, &s.ego);
+    let tol = config.vehicle.lane_centre_tolerance_m;
+    (1..=road.lanes)
+        .map(|lane| {
+            let achievable = s
+                .svs
+                .iter()
+                .filter(|sv| sv.x_m > ego.x_m && sv.x_m - ego.x_m <= config.cost.lane_lookahead_m)
+                .filter(|sv| lanes_at(road, sv.y_m, tol).is_ok_and(|occ| occ.contains(lane)))
+                .map(|sv| sv.v_mps)
+                .fold(ego.desired_speed_mps, f64::min);
+            config.cost.w_lane_speed * (ego.desired_speed_mps - achievable).max(0.0)
+        })
+        .collect()
+}
+
+/// An SV moving sideways is predicted along its lateral velocity: each branch also occupies
+/// the lanes of the linearly extrapolated position, so a drifting SV is in the ego's lane in
+/// the prediction before it leaves its own lane centre.
+fn widen_by_lateral_motion(config: &PlannerConfig, road: &Road, sv: &SvObservation, branches: &mut [Branch]) {
+    let threshold = config.prediction.lateral_velocity_threshold_mps;
+    if threshold <= 0.0 || sv.vy_mps.abs() < threshold {
+        return;
+    }
+    let tol = config.vehicle.lane_centre_tolerance_m;
+    let (lo, hi) = (road.lane_centre(road.lanes), road.lane_centre(1));
+    for b in branches.iter_mut() {
+        for (h, occ) in b.occupancy.iter_mut().enumerate() {
+            let y = (sv.y_m + sv.vy_mps * config.timing.step_s * (h + 1) as f64).clamp(lo, hi);
+            if let Ok(lanes) = lanes_at(road, y, tol) {
+                *occ = occ.union(lanes);
+            }
+        }
     }
 }

@@ -40,14 +40,14 @@ fn an_sv_in_the_other_lane_does_not_constrain_a_lane_keeping_ego() {
 fn a_lane_change_under_way_makes_the_other_lane_binding() {
     // Same SV, but the ego is half-way to lane 1: it occupies both lanes and is far too close.
     let d = decide(&situation(2.0, 1, 4.0));
-    assert_ne!(d.layer, Layer::Nominal, "{d:?}");
     assert_eq!(d.next_maneuver.beta, -1, "the ego must back off: {d:?}");
+    assert!(d.setpoint.accel_mps2 < -0.3, "{d:?}");
 }
 
 #[test]
 fn an_sv_between_lanes_occupies_both() {
     // The SV drifts half-way into the ego's lane (y = 2): it shares lane 2 with the ego.
     let d = decide(&situation(0.0, 2, 2.0));
-    assert_ne!(d.layer, Layer::Nominal, "{d:?}");
     assert_eq!(d.next_maneuver.beta, -1, "{d:?}");
+    assert!(d.setpoint.accel_mps2 < -0.3, "{d:?}");
 }
