@@ -15,7 +15,8 @@ use traffic::{Scenario, SimParams, TrafficConfig};
 use crate::episode::{run_episode, Driver, EpisodeSpec};
 use crate::error::{Result, SimClientError};
 use crate::link::{PlannerLink, Transport};
-use crate::metrics::{clean, EpisodeMetrics, LayerCounts, SolveTimeStats};
+use crate::metrics::{clean, CollisionSplit, EpisodeMetrics, LayerCounts, SolveTimeStats};
+use crate::safety::GroupSafety;
 
 /// Episode duration of the campaign (75 decisions at T_h = 0.4 s), s.
 pub const CAMPAIGN_DURATION_S: f64 = 30.0;
@@ -141,6 +142,8 @@ pub fn scale_trials(entries: &[CampaignEntry], scale: f64) -> Result<Vec<Campaig
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DriverKind {
+    /// The planner with the paper-literal preset (`deploy/paper.toml`).
+    PaperLiteral,
     /// The planner as configured.
     Planner,
     /// The planner with hysteresis off.
@@ -153,15 +156,17 @@ impl DriverKind {
     /// Name used in files.
     pub fn name(self) -> &'static str {
         match self {
+            DriverKind::PaperLiteral => "paper_literal",
             DriverKind::Planner => "planner",
             DriverKind::PlannerNoHysteresis => "planner_no_hysteresis",
             DriverKind::IdmMobil => "idm_mobil",
         }
     }
 
-    fn planner_config(self, base: &PlannerConfig) -> Option<PlannerConfig> {
-        let mut c = base.clone();
+    fn planner_config(self, settings: &CampaignSettings) -> Option<PlannerConfig> {
+        let mut c = settings.planner.clone();
         match self {
+            DriverKind::PaperLiteral => settings.paper_literal.clone(),
             DriverKind::Planner => Some(c),
             DriverKind::PlannerNoHysteresis => {
                 c.hysteresis.enabled = false;
@@ -187,6 +192,8 @@ pub struct CampaignSettings {
     pub duration_s: f64,
     /// Planner configuration (the "planner" driver uses it as is).
     pub planner: PlannerConfig,
+    /// The paper-literal preset, run as a baseline when given.
+    pub paper_literal: Option<PlannerConfig>,
     /// Transport to the planner.
     pub transport: Transport,
     /// Simulator parameters.
@@ -203,6 +210,7 @@ impl CampaignSettings {
             baselines: true,
             duration_s: CAMPAIGN_DURATION_S,
             planner: PlannerConfig::default(),
+            paper_literal: None,
             transport: Transport::InProcess,
             params: SimParams::default(),
         }
@@ -211,11 +219,15 @@ impl CampaignSettings {
     /// The drivers this campaign runs, in report order.
     pub fn drivers(&self) -> Vec<DriverKind> {
         if self.baselines {
-            vec![
-                DriverKind::Planner,
-                DriverKind::PlannerNoHysteresis,
-                DriverKind::IdmMobil,
-            ]
+            let paper = self.paper_literal.as_ref().map(|_| DriverKind::PaperLiteral);
+            paper
+                .into_iter()
+                .chain([
+                    DriverKind::Planner,
+                    DriverKind::PlannerNoHysteresis,
+                    DriverKind::IdmMobil,
+                ])
+                .collect()
         } else {
             vec![DriverKind::Planner]
         }
@@ -289,6 +301,8 @@ pub struct GroupResult {
     pub decisions_by_layer: LayerCounts,
     /// Episodes with an ego collision.
     pub collisions: u64,
+    /// Ego collisions by cause, and SV-SV contacts.
+    pub collision_split: CollisionSplit,
     /// `collisions / trials`.
     pub collision_rate: f64,
     /// Nominal share of planner decisions (`None` for the IDM ego).
@@ -307,6 +321,8 @@ pub struct GroupResult {
     pub beta_switches_per_min: f64,
     /// Simulated time (s).
     pub simulated_s: f64,
+    /// Surrogate safety measures over the episodes.
+    pub safety: GroupSafety,
 }
 
 /// Everything a campaign produced.
@@ -366,12 +382,15 @@ fn ratio(a: u64, b: u64) -> f64 {
     }
 }
 
-/// Aggregates outcomes (in the given order) into one group.
+/// Aggregates outcomes (in the given order) into one group; `dt` is the simulator step.
 pub fn aggregate<'a>(
     entry: Option<&CampaignEntry>,
     driver: DriverKind,
     outcomes: impl Iterator<Item = &'a TrialOutcome>,
+    dt: f64,
 ) -> GroupResult {
+    let outcomes: Vec<&TrialOutcome> = outcomes.collect();
+    let mut split = CollisionSplit::default();
     let mut trials = 0u64;
     let mut decisions = 0u64;
     let mut layers = LayerCounts::default();
@@ -381,8 +400,9 @@ pub fn aggregate<'a>(
     let mut lane_changes = 0u64;
     let mut beta_switches = 0u64;
     let mut solve: Vec<u64> = Vec::new();
-    for o in outcomes {
+    for o in &outcomes {
         let m = &o.metrics;
+        split.merge(&m.collision_split);
         trials += 1;
         decisions += m.decisions;
         layers.merge(&m.decisions_by_layer);
@@ -407,6 +427,7 @@ pub fn aggregate<'a>(
         decisions,
         decisions_by_layer: layers,
         collisions,
+        collision_split: split,
         collision_rate: ratio(collisions, trials),
         nor: planner.then(|| ratio(layers.nominal, total)),
         gsrr: planner.then(|| ratio(layers.global_relaxation, total)),
@@ -416,6 +437,7 @@ pub fn aggregate<'a>(
         lane_changes_per_min: per_min(lane_changes),
         beta_switches_per_min: per_min(beta_switches),
         simulated_s: clean(simulated),
+        safety: GroupSafety::from_episodes(outcomes.iter().map(|o| &o.metrics.safety), dt),
     }
 }
 
@@ -434,7 +456,7 @@ impl Worker<'_> {
     fn run(&mut self, item: &Item) -> Result<TrialOutcome> {
         let entry = &self.settings.entries[item.entry];
         let spec = trial_spec(entry, item.trial, self.settings)?;
-        let episode = match item.driver.planner_config(&self.settings.planner) {
+        let episode = match item.driver.planner_config(self.settings) {
             None => run_episode(&spec, Driver::IdmMobil)?,
             Some(config) => {
                 let pos = match self.links.iter().position(|(d, _)| *d == item.driver) {
@@ -523,12 +545,13 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
                 Some(e),
                 d,
                 outcomes.iter().filter(|o| o.config_id == e.id && o.driver == d),
+                settings.params.dt,
             ));
         }
     }
     let overall = drivers
         .iter()
-        .map(|&d| aggregate(None, d, outcomes.iter().filter(|o| o.driver == d)))
+        .map(|&d| aggregate(None, d, outcomes.iter().filter(|o| o.driver == d), settings.params.dt))
         .collect();
     Ok(CampaignResults {
         seed: settings.seed,

@@ -273,21 +273,26 @@ enum Command {
         #[arg(long)]
         part_out: PathBuf,
     },
-    /// Case 1: the Table II scene for 40 s with the planner.
+    /// Case 1: the Table II scene for 40 s with the planner, and with the paper-literal
+    /// preset (in process) beside it.
     Case1 {
         #[command(flatten)]
         common: Common,
         /// Seed of the simulator's random stream.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        #[command(flatten)]
+        paper: PaperArgs,
     },
-    /// Case 2: Case 1 with hysteresis on and off.
+    /// Case 2: Case 1 with hysteresis on and off, for the planner and the paper-literal preset.
     Case2 {
         #[command(flatten)]
         common: Common,
         /// Seed of the simulator's random stream.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        #[command(flatten)]
+        paper: PaperArgs,
     },
     /// Case 3: the randomized campaign of Table I.
     Campaign {
@@ -305,10 +310,27 @@ enum Command {
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
-        /// Also run the planner without hysteresis and the IDM + MOBIL ego.
+        /// Also run the paper-literal preset, the planner without hysteresis and the IDM +
+        /// MOBIL ego.
         #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
         baselines: bool,
+        #[command(flatten)]
+        paper: PaperArgs,
     },
+}
+
+/// The paper-literal preset of the case and campaign commands.
+#[derive(Args)]
+struct PaperArgs {
+    /// Planner TOML of the paper-literal preset (default: the embedded deploy/paper.toml).
+    #[arg(long, value_name = "FILE")]
+    paper_config: Option<PathBuf>,
+}
+
+impl PaperArgs {
+    fn config(&self) -> Result<PlannerConfig> {
+        Ok(sim_client::presets::paper_literal(self.paper_config.as_deref())?)
+    }
 }
 
 /// The command-line flags that reach `transport` (for `load --processes` children).
@@ -560,27 +582,26 @@ fn main() -> Result<()> {
                 .with_context(|| format!("writing {}", part_out.display()))?;
             return Ok(());
         }
-        Command::Case1 { mut common, seed } => {
+        Command::Case1 {
+            mut common,
+            seed,
+            paper,
+        } => {
             let _planner = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
-            let run = cases::run_case1(&config, &common.transport, seed)?;
-            let files = report::write_case1(&common.out, &run)?;
-            let m = &run.metrics;
-            println!(
-                "case1: {} decisions (nominal {}, relaxation {}, fallback {}), collisions {}, lane changes {}, beta switches {}, corrective {:.1} s, mean speed {:.2} m/s",
-                m.decisions,
-                m.decisions_by_layer.nominal,
-                m.decisions_by_layer.global_relaxation,
-                m.decisions_by_layer.fallback,
-                m.collisions,
-                m.lane_changes,
-                m.beta_switches,
-                m.corrective_time_s,
-                m.mean_speed_mps
-            );
+            let case = cases::run_case1_compared(&config, Some(&paper.config()?), &common.transport, seed)?;
+            let files = report::write_case1(&common.out, &case)?;
+            println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
+            if let Some(p) = &case.paper_literal {
+                println!("case1 paper_literal: {}", report::episode_summary_line(&p.metrics));
+            }
             print_files(&files);
         }
-        Command::Case2 { mut common, seed } => {
+        Command::Case2 {
+            mut common,
+            seed,
+            paper,
+        } => {
             if common.transport != Transport::InProcess {
                 // A planner process has one configuration; the ablation needs two.
                 anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
@@ -588,16 +609,28 @@ fn main() -> Result<()> {
             // Refuses the remote-transport flags, which mean nothing in process.
             let _none = prepare_transport(&mut common)?;
             let config = planner_config(common.planner_config.as_deref())?;
-            let case = cases::run_case2(&config, &common.transport, seed)?;
+            let case = cases::run_case2(&config, Some(&paper.config()?), &common.transport, seed)?;
             let files = report::write_case2(&common.out, &case)?;
             let s = case.summary();
-            println!(
-                "case2: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
-                s.beta_switches_with,
-                s.beta_switches_without,
-                s.with_hysteresis.collisions,
-                s.without_hysteresis.collisions
-            );
+            for (name, a) in
+                std::iter::once(("case2", &s.planner)).chain(s.paper_literal.iter().map(|a| ("case2 paper_literal", a)))
+            {
+                println!(
+                    "{name}: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
+                    a.beta_switches_with,
+                    a.beta_switches_without,
+                    a.with_hysteresis.collisions,
+                    a.without_hysteresis.collisions
+                );
+                println!(
+                    "  with hysteresis: {}",
+                    report::episode_summary_line(&a.with_hysteresis)
+                );
+                println!(
+                    "  without hysteresis: {}",
+                    report::episode_summary_line(&a.without_hysteresis)
+                );
+            }
             print_files(&files);
         }
         Command::Campaign {
@@ -607,6 +640,7 @@ fn main() -> Result<()> {
             seed,
             threads,
             baselines,
+            paper,
         } => {
             if common.transport != Transport::InProcess && baselines {
                 // A planner process has one configuration; the no-hysteresis baseline needs another.
@@ -625,6 +659,7 @@ fn main() -> Result<()> {
             let mut settings = CampaignSettings::new(entries, seed, threads);
             settings.baselines = baselines;
             settings.planner = planner;
+            settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
             settings.transport = common.transport;
             let total = settings.episode_count() as u64;
             let bar = if std::io::stderr().is_terminal() {
@@ -653,7 +688,25 @@ fn main() -> Result<()> {
                     g.solve_time.p99_ms,
                     g.solve_time.max_ms,
                 );
+                let s = &g.safety;
+                println!(
+                    "{:<22} collisions at fault {} / hit in lane {} / SV-SV {}  hard brakes {:.1}/h  min TTC p5 {} p50 {} s  TTC<3s {:.2}%  headway<1s {:.2}%  max DRAC {:.2} m/s^2",
+                    "",
+                    g.collision_split.ego_at_fault,
+                    g.collision_split.ego_hit_in_lane,
+                    g.collision_split.sv_sv,
+                    s.hard_braking_per_hour,
+                    s.min_ttc_p5_s.map_or("inf".into(), |v| format!("{v:.2}")),
+                    s.min_ttc_p50_s.map_or("inf".into(), |v| format!("{v:.2}")),
+                    100.0 * s.ttc_below_3s_share,
+                    100.0 * s.headway_below_1s_share,
+                    s.max_drac_mps2,
+                );
             }
+            println!(
+                "campaign wall time {:.1} s on {} thread(s)",
+                results.wall_time_s, results.threads
+            );
             print_files(&files);
         }
     }

@@ -1,20 +1,22 @@
 //! Files: CSV, JSON and markdown writers of the experiments. The formatting functions
-//! return strings/bytes; only the `write_*` functions touch the filesystem.
+//! return strings/bytes; only the `write_*` functions touch the filesystem. The campaign's
+//! files are in [`crate::campaign_report`], re-exported here.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::campaign::{CampaignResults, DriverKind, GroupResult};
-use crate::cases::{Case2, CaseRun};
+use crate::cases::{Ablation, Case1, Case2, CaseRun};
 use crate::episode::{DecisionRecord, VehicleState};
 use crate::error::{Result, SimClientError};
-use crate::metrics::SolveTimeStats;
-use crate::paper::{paper_row_for, PAPER_OVERALL};
+use crate::metrics::{EpisodeMetrics, SolveTimeStats};
 use crate::plot;
+use crate::prediction::{sv_predictions, SvPrediction};
 
-fn csv_bytes<T: Serialize>(rows: &[T]) -> Result<Vec<u8>> {
+pub use crate::campaign_report::{campaign_csv, campaign_markdown, write_campaign};
+
+pub(crate) fn csv_bytes<T: Serialize>(rows: &[T]) -> Result<Vec<u8>> {
     let mut w = csv::Writer::from_writer(Vec::new());
     for r in rows {
         w.serialize(r)?;
@@ -68,242 +70,230 @@ pub fn timing_json(decisions: &[DecisionRecord]) -> Result<Vec<u8>> {
     })
 }
 
-fn create_dir(dir: &Path) -> Result<()> {
+pub(crate) fn create_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| SimClientError::io(dir, e))
 }
 
-fn write(path: PathBuf, bytes: &[u8]) -> Result<PathBuf> {
+pub(crate) fn write(path: PathBuf, bytes: &[u8]) -> Result<PathBuf> {
     std::fs::write(&path, bytes).map_err(|e| SimClientError::io(&path, e))?;
     Ok(path)
 }
 
-/// Writes `DIR/case1/`: trajectory.csv, decisions.csv, summary.json, timing.json and the
-/// plots speed.svg, beta.svg, snapshots.svg. Returns the files written.
-pub fn write_case1(out: &Path, run: &CaseRun) -> Result<Vec<PathBuf>> {
-    let dir = out.join("case1");
-    create_dir(&dir)?;
+fn write_decision_files(dir: &Path, run: &CaseRun, suffix: &str) -> Result<Vec<PathBuf>> {
+    Ok(vec![
+        write(
+            dir.join(format!("decisions{suffix}.csv")),
+            &decisions_csv(&run.episode.decisions)?,
+        )?,
+        write(
+            dir.join(format!("timing{suffix}.json")),
+            &timing_json(&run.episode.decisions)?,
+        )?,
+    ])
+}
+
+/// The planner's SV predictions at the decision instants `picks`, from the situations the
+/// run recorded (none when it recorded none).
+pub fn predictions_at(run: &CaseRun, picks: &[usize], figure: &Path) -> Result<Vec<Vec<SvPrediction>>> {
+    picks
+        .iter()
+        .map(
+            |&k| match run.episode.decisions.get(k).and_then(|d| d.situation.as_ref()) {
+                None => Ok(Vec::new()),
+                Some(s) => sv_predictions(&run.config, s).map_err(|e| SimClientError::Plot {
+                    path: figure.display().to_string(),
+                    message: format!("predictions at decision {k}: {e}"),
+                }),
+            },
+        )
+        .collect()
+}
+
+/// The speed and snapshot figures of one run at the decision instants `picks`.
+fn write_run_figures(dir: &Path, run: &CaseRun, label: &str, suffix: &str, picks: &[usize]) -> Result<Vec<PathBuf>> {
+    let speed = dir.join(format!("speed{suffix}.svg"));
+    let title = format!("Speed, {label}: ego vs. SVs (shaded: corrective mode per reference SV)");
+    plot::speed_plot(&speed, &run.episode, &title, picks)?;
+    let snaps = dir.join(format!("snapshots{suffix}.svg"));
+    let predictions = predictions_at(run, picks, &snaps)?;
+    plot::snapshots_plot(&snaps, &run.scenario, &run.episode, picks, &predictions)?;
+    Ok(vec![speed, snaps])
+}
+
+/// Writes one Case 1 run into `dir`: trajectory.csv, decisions.csv, summary.json,
+/// timing.json, speed.svg, beta.svg, snapshots.svg.
+fn write_case1_run(dir: &Path, run: &CaseRun, label: &str) -> Result<Vec<PathBuf>> {
+    create_dir(dir)?;
     let mut files = vec![
         write(dir.join("trajectory.csv"), &trajectory_csv(&run.episode.trajectory)?)?,
-        write(dir.join("decisions.csv"), &decisions_csv(&run.episode.decisions)?)?,
         write(dir.join("summary.json"), &json_bytes(&run.metrics)?)?,
-        write(dir.join("timing.json"), &timing_json(&run.episode.decisions)?)?,
     ];
-    let speed = dir.join("speed.svg");
-    plot::speed_plot(&speed, &run.episode)?;
+    files.extend(write_decision_files(dir, run, "")?);
+    let picks = plot::snapshot_instants(&run.episode);
+    files.extend(write_run_figures(dir, run, label, "", &picks)?);
     let beta = dir.join("beta.svg");
     plot::beta_plot(&beta, &run.episode)?;
-    let snaps = dir.join("snapshots.svg");
-    plot::snapshots_plot(&snaps, &run.scenario, &run.episode)?;
-    files.extend([speed, beta, snaps]);
+    files.push(beta);
     Ok(files)
 }
 
-/// Writes `DIR/case2/`: summary.json, both runs' decisions CSVs and ablation.svg.
+/// Writes `DIR/case1/`: the planner's run (trajectory.csv, decisions.csv, summary.json,
+/// timing.json, speed.svg, beta.svg, snapshots.svg), the preset's in `case1/paper_literal/`,
+/// and comparison.md with both summaries side by side. Returns the files written.
+pub fn write_case1(out: &Path, case: &Case1) -> Result<Vec<PathBuf>> {
+    let dir = out.join("case1");
+    let mut files = write_case1_run(&dir, &case.planner, "planner")?;
+    let mut columns = vec![("planner", &case.planner.metrics)];
+    if let Some(paper) = &case.paper_literal {
+        files.extend(write_case1_run(
+            &dir.join("paper_literal"),
+            paper,
+            "paper-literal preset",
+        )?);
+        columns.push(("paper_literal", &paper.metrics));
+    }
+    let md = metrics_comparison_markdown("Case 1: the Table II scene, 40 s", &columns);
+    files.push(write(dir.join("comparison.md"), md.as_bytes())?);
+    Ok(files)
+}
+
+/// Writes one ablation into `dir`: both runs' decisions, speed and snapshot figures (at the
+/// same instants, chosen on the run with hysteresis) and ablation.svg (beta over time).
+fn write_ablation(dir: &Path, ablation: &Ablation, label: &str) -> Result<Vec<PathBuf>> {
+    create_dir(dir)?;
+    let picks = plot::snapshot_instants(&ablation.with.episode);
+    let mut files = Vec::new();
+    for (run, which, suffix) in [
+        (&ablation.with, "with hysteresis", "_with_hysteresis"),
+        (&ablation.without, "without hysteresis", "_without_hysteresis"),
+    ] {
+        files.extend(write_decision_files(dir, run, suffix)?);
+        files.extend(write_run_figures(
+            dir,
+            run,
+            &format!("{label} {which}"),
+            suffix,
+            &picks,
+        )?);
+    }
+    let beta = dir.join("ablation.svg");
+    plot::ablation_plot(&beta, &ablation.with.episode, &ablation.without.episode)?;
+    files.push(beta);
+    Ok(files)
+}
+
+/// Writes `DIR/case2/`: summary.json, comparison.md, the planner's ablation (decisions,
+/// speed_*.svg, snapshots_*.svg, ablation.svg) and the preset's in `case2/paper_literal/`.
 pub fn write_case2(out: &Path, case: &Case2) -> Result<Vec<PathBuf>> {
     let dir = out.join("case2");
-    create_dir(&dir)?;
-    let mut files = vec![
-        write(dir.join("summary.json"), &json_bytes(&case.summary())?)?,
-        write(
-            dir.join("decisions_with_hysteresis.csv"),
-            &decisions_csv(&case.with.episode.decisions)?,
-        )?,
-        write(
-            dir.join("decisions_without_hysteresis.csv"),
-            &decisions_csv(&case.without.episode.decisions)?,
-        )?,
+    let mut files = write_ablation(&dir, &case.planner, "planner")?;
+    files.push(write(dir.join("summary.json"), &json_bytes(&case.summary())?)?);
+    let mut columns = vec![
+        ("planner, hysteresis", &case.planner.with.metrics),
+        ("planner, no hysteresis", &case.planner.without.metrics),
     ];
-    let ablation = dir.join("ablation.svg");
-    plot::ablation_plot(&ablation, &case.with.episode, &case.without.episode)?;
-    files.push(ablation);
+    if let Some(paper) = &case.paper_literal {
+        files.extend(write_ablation(&dir.join("paper_literal"), paper, "paper-literal")?);
+        columns.push(("paper_literal, hysteresis", &paper.with.metrics));
+        columns.push(("paper_literal, no hysteresis", &paper.without.metrics));
+    }
+    let md = metrics_comparison_markdown("Case 2: hysteresis on and off", &columns);
+    files.push(write(dir.join("comparison.md"), md.as_bytes())?);
     Ok(files)
 }
 
-fn opt_pct(x: Option<f64>) -> String {
-    x.map_or_else(|| "-".to_string(), |v| format!("{:.2}%", 100.0 * v))
+pub(crate) fn ttc_cell(t: Option<f64>) -> String {
+    t.map_or_else(|| "inf".into(), |v| format!("{v:.2}"))
 }
 
-fn pct(x: f64) -> String {
-    format!("{:.2}%", 100.0 * x)
-}
-
-fn range(r: Option<(f64, f64)>) -> String {
-    r.map_or_else(|| "-".into(), |(a, b)| format!("[{a}, {b}]"))
-}
-
-/// One flat row of results.csv.
-#[derive(Serialize)]
-struct CsvRow {
-    config_id: String,
-    driver: &'static str,
-    lanes: String,
-    sv_count: String,
-    speed_lo: String,
-    speed_hi: String,
-    trials: u64,
-    decisions: u64,
-    nominal: u64,
-    global_relaxation: u64,
-    fallback: u64,
-    collisions: u64,
-    collision_rate: f64,
-    nor: String,
-    gsrr: String,
-    fbr: String,
-    solve_mean_ms: f64,
-    solve_p99_ms: f64,
-    solve_max_ms: f64,
-    mean_speed_mps: f64,
-    lane_changes_per_min: f64,
-    beta_switches_per_min: f64,
-}
-
-fn csv_row(g: &GroupResult) -> CsvRow {
-    let opt = |x: Option<f64>| x.map_or_else(String::new, |v| format!("{v}"));
-    CsvRow {
-        config_id: g.config_id.map_or_else(|| "overall".into(), |i| i.to_string()),
-        driver: g.driver.name(),
-        lanes: g.lanes.map_or_else(String::new, |l| l.to_string()),
-        sv_count: g.sv_count.map_or_else(String::new, |l| l.to_string()),
-        speed_lo: opt(g.speed_range.map(|r| r.0)),
-        speed_hi: opt(g.speed_range.map(|r| r.1)),
-        trials: g.trials,
-        decisions: g.decisions,
-        nominal: g.decisions_by_layer.nominal,
-        global_relaxation: g.decisions_by_layer.global_relaxation,
-        fallback: g.decisions_by_layer.fallback,
-        collisions: g.collisions,
-        collision_rate: g.collision_rate,
-        nor: opt(g.nor),
-        gsrr: opt(g.gsrr),
-        fbr: opt(g.fbr),
-        solve_mean_ms: g.solve_time.mean_ms,
-        solve_p99_ms: g.solve_time.p99_ms,
-        solve_max_ms: g.solve_time.max_ms,
-        mean_speed_mps: g.mean_speed_mps,
-        lane_changes_per_min: g.lane_changes_per_min,
-        beta_switches_per_min: g.beta_switches_per_min,
-    }
-}
-
-/// results.csv: one row per configuration and driver, then one overall row per driver.
-pub fn campaign_csv(r: &CampaignResults) -> Result<Vec<u8>> {
-    let rows: Vec<CsvRow> = r.groups.iter().chain(&r.overall).map(csv_row).collect();
-    csv_bytes(&rows)
-}
-
-fn paper_cells(g: &GroupResult) -> [String; 5] {
-    let row = match (g.lanes, g.sv_count, g.speed_range) {
-        (Some(l), Some(s), Some(v)) => paper_row_for(l, s, v),
-        _ => Some(&PAPER_OVERALL),
-    };
-    match row {
-        Some(p) => [
-            p.trials.to_string(),
-            format!("{:.2}%", p.collision_pct),
-            format!("{:.2}%", p.nor_pct),
-            format!("{:.2}%", p.gsrr_pct),
-            format!("{:.2}%", p.fbr_pct),
-        ],
-        None => std::array::from_fn(|_| "-".to_string()),
-    }
-}
-
-/// results.md: Table I (paper beside ours, planner driver) and the baseline comparison.
-pub fn campaign_markdown(r: &CampaignResults) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "# Case 3: randomized campaign\n");
-    let _ = writeln!(
-        s,
-        "Seed {}, episodes of {} s, {} configuration(s), wall time {:.1} s on {} thread(s).\n",
-        r.seed,
-        r.duration_s,
-        r.entries.len(),
-        r.wall_time_s,
-        r.threads
-    );
-    let _ = writeln!(
-        s,
-        "## Table I: paper vs. this planner\n\nEach cell: paper / ours. The paper's values are \
-         shown for configurations matching one of its 18 rows.\n"
-    );
-    let _ = writeln!(
-        s,
-        "| ID | Lanes | Speed (m/s) | SVs | N | Decisions | Collision rate | NOR | GSRR | FBR |"
-    );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
-    let planner_rows = r
-        .groups
-        .iter()
-        .filter(|g| g.driver == DriverKind::Planner)
-        .chain(r.overall_for(DriverKind::Planner));
-    for g in planner_rows {
-        let p = paper_cells(g);
-        let id = g.config_id.map_or_else(|| "**Overall**".into(), |i| i.to_string());
-        let _ = writeln!(
-            s,
-            "| {id} | {} | {} | {} | {} / {} | {} | {} / {} | {} / {} | {} / {} | {} / {} |",
-            g.lanes.map_or_else(|| "-".into(), |l| l.to_string()),
-            range(g.speed_range),
-            g.sv_count.map_or_else(|| "-".into(), |l| l.to_string()),
-            p[0],
-            g.trials,
-            g.decisions,
-            p[1],
-            pct(g.collision_rate),
-            p[2],
-            opt_pct(g.nor),
-            p[3],
-            opt_pct(g.gsrr),
-            p[4],
-            opt_pct(g.fbr),
-        );
-    }
-    let _ = writeln!(s, "\n## Baselines (same scenarios and seeds)\n");
-    let _ = writeln!(
-        s,
-        "| Driver | Trials | Decisions | Collision rate | NOR | GSRR | FBR | Mean speed (m/s) | \
-         Lane changes/min | Beta switches/min | Solve mean / p99 / max (ms) |"
-    );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
-    for g in &r.overall {
-        let solve = if g.solve_time.samples > 0 {
+/// Episode metrics side by side, one column per run.
+pub fn metrics_comparison_markdown(title: &str, runs: &[(&str, &EpisodeMetrics)]) -> String {
+    type Row = (&'static str, fn(&EpisodeMetrics) -> String);
+    let rows: [Row; 16] = [
+        ("decisions", |m| m.decisions.to_string()),
+        ("nominal / relaxation / fallback", |m| {
+            let l = &m.decisions_by_layer;
+            format!("{} / {} / {}", l.nominal, l.global_relaxation, l.fallback)
+        }),
+        ("collisions (ego at fault / ego hit in lane / SV-SV)", |m| {
+            let c = &m.collision_split;
             format!(
-                "{:.3} / {:.3} / {:.3}",
-                g.solve_time.mean_ms, g.solve_time.p99_ms, g.solve_time.max_ms
+                "{} ({} / {} / {})",
+                m.collisions, c.ego_at_fault, c.ego_hit_in_lane, c.sv_sv
             )
-        } else {
-            "-".into()
-        };
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {solve} |",
-            g.driver.name(),
-            g.trials,
-            g.decisions,
-            pct(g.collision_rate),
-            opt_pct(g.nor),
-            opt_pct(g.gsrr),
-            opt_pct(g.fbr),
-            g.mean_speed_mps,
-            g.lane_changes_per_min,
-            g.beta_switches_per_min,
-        );
+        }),
+        ("lane changes", |m| m.lane_changes.to_string()),
+        ("beta switches", |m| m.beta_switches.to_string()),
+        ("corrective time (s)", |m| format!("{:.1}", m.corrective_time_s)),
+        ("mean speed (m/s)", |m| format!("{:.2}", m.mean_speed_mps)),
+        ("min speed (m/s)", |m| format!("{:.2}", m.safety.min_speed_mps)),
+        ("min TTC (s)", |m| ttc_cell(m.safety.min_ttc_s)),
+        ("time with TTC < 3 s", |m| pct(m.safety.ttc_below_3s_share)),
+        ("time with headway < 1 s", |m| pct(m.safety.headway_below_1s_share)),
+        ("max DRAC (m/s^2)", |m| format!("{:.2}", m.safety.max_drac_mps2)),
+        ("hard-braking events", |m| m.safety.hard_braking_events.to_string()),
+        ("hard-braking events per hour", |m| {
+            let hours = m.simulated_s / 3600.0;
+            format!(
+                "{:.1}",
+                if hours > 0.0 {
+                    f64::from(m.safety.hard_braking_events) / hours
+                } else {
+                    0.0
+                }
+            )
+        }),
+        ("jerk RMS (m/s^3)", |m| format!("{:.3}", m.safety.jerk_rms_mps3)),
+        ("max abs jerk (m/s^3)", |m| format!("{:.3}", m.safety.jerk_max_abs_mps3)),
+    ];
+    let mut s = format!("# {title}\n\n| metric |");
+    for (name, _) in runs {
+        let _ = write!(s, " {name} |");
     }
-    let _ = writeln!(
-        s,
-        "\nThe IDM + MOBIL ego's beta is the sign of its acceleration (dead band 0.3 m/s^2)."
-    );
+    s.push_str("\n|---|");
+    s.push_str(&"---|".repeat(runs.len()));
+    s.push('\n');
+    for (label, cell) in rows {
+        let _ = write!(s, "| {label} |");
+        for (_, m) in runs {
+            let _ = write!(s, " {} |", cell(m));
+        }
+        s.push('\n');
+    }
     s
 }
 
-/// Writes `DIR/campaign/`: results.json, results.csv, results.md.
-pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
-    let dir = out.join("campaign");
-    create_dir(&dir)?;
-    Ok(vec![
-        write(dir.join("results.json"), &json_bytes(r)?)?,
-        write(dir.join("results.csv"), &campaign_csv(r)?)?,
-        write(dir.join("results.md"), campaign_markdown(r).as_bytes())?,
-    ])
+pub(crate) fn pct(x: f64) -> String {
+    format!("{:.2}%", 100.0 * x)
+}
+
+/// One line summing up an episode (the case commands print it).
+pub fn episode_summary_line(m: &EpisodeMetrics) -> String {
+    let c = &m.collision_split;
+    let s = &m.safety;
+    format!(
+        "{} decisions (nominal {}, relaxation {}, fallback {}), collisions {} (ego at fault {}, ego hit in lane {}, SV-SV {}), \
+         lane changes {}, beta switches {}, corrective {:.1} s, mean speed {:.2} m/s, min speed {:.2} m/s, \
+         min TTC {} s, TTC < 3 s {}, headway < 1 s {}, max DRAC {:.2} m/s^2, hard brakes {}, jerk RMS {:.2} max {:.2} m/s^3",
+        m.decisions,
+        m.decisions_by_layer.nominal,
+        m.decisions_by_layer.global_relaxation,
+        m.decisions_by_layer.fallback,
+        m.collisions,
+        c.ego_at_fault,
+        c.ego_hit_in_lane,
+        c.sv_sv,
+        m.lane_changes,
+        m.beta_switches,
+        m.corrective_time_s,
+        m.mean_speed_mps,
+        s.min_speed_mps,
+        ttc_cell(s.min_ttc_s),
+        pct(s.ttc_below_3s_share),
+        pct(s.headway_below_1s_share),
+        s.max_drac_mps2,
+        s.hard_braking_events,
+        s.jerk_rms_mps3,
+        s.jerk_max_abs_mps3,
+    )
 }

@@ -1,6 +1,7 @@
 //! The randomized campaign: consistency, thread-count independence, report formatting.
 
 use sim_client::campaign::{paper_entries, parse_entries, run_campaign, scale_trials, CampaignSettings, DriverKind};
+use sim_client::presets::paper_literal;
 use sim_client::report::{campaign_csv, campaign_markdown, write_campaign};
 
 const TINY: &str = r#"
@@ -63,13 +64,14 @@ fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
     let run = |threads| {
         let mut s = CampaignSettings::new(entries.clone(), 9, threads);
         s.duration_s = 12.0;
+        s.paper_literal = Some(paper_literal(None).unwrap());
         run_campaign(&s, &|| {}).unwrap()
     };
     let one = run(1);
     let two = run(2);
     assert_eq!(one.without_timing(), two.without_timing());
-    assert_eq!(one.groups.len(), 9);
-    assert_eq!(one.overall.len(), 3);
+    assert_eq!(one.groups.len(), 12);
+    assert_eq!(one.overall.len(), 4);
     for g in one.groups.iter().chain(&one.overall) {
         assert_eq!(g.trials, if g.config_id.is_some() { 2 } else { 6 });
         let layers = g.decisions_by_layer.total();
@@ -93,9 +95,36 @@ fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
         // 12 s = 30 decisions unless the episode ended in a collision.
         assert!(g.decisions <= 30 * g.trials);
         assert!(g.decisions >= 30 * (g.trials - g.collisions));
+        assert_eq!(g.collision_split.ego_total(), g.collisions, "collision split of {g:?}");
+        let s = &g.safety;
+        for share in [s.ttc_below_3s_share, s.headway_below_1s_share] {
+            assert!((0.0..=1.0).contains(&share), "share {share} out of [0, 1]");
+        }
+        assert!(s.min_ttc_min_s <= s.min_ttc_p5_s.or(Some(f64::INFINITY)));
+        assert!(s.min_ttc_p5_s.unwrap_or(f64::INFINITY) <= s.min_ttc_p50_s.unwrap_or(f64::INFINITY));
+        // 12 s per trial: events per hour from the count.
+        let hours = g.simulated_s / 3600.0;
+        assert!((s.hard_braking_per_hour * hours - s.hard_braking_events as f64).abs() < 1e-6);
     }
-    // All three drivers saw the same scenarios: equal trial counts, same configs.
+    // The overall rows pool the configuration rows.
+    for &d in &one.drivers {
+        let parts: Vec<_> = one.groups.iter().filter(|g| g.driver == d).collect();
+        let all = one.overall_for(d).unwrap();
+        let events: u64 = parts.iter().map(|g| g.safety.hard_braking_events).sum();
+        assert_eq!(all.safety.hard_braking_events, events);
+        let sv_sv: u64 = parts.iter().map(|g| g.collision_split.sv_sv).sum();
+        assert_eq!(all.collision_split.sv_sv, sv_sv);
+        let drac = parts.iter().map(|g| g.safety.max_drac_mps2).fold(0.0, f64::max);
+        assert_eq!(all.safety.max_drac_mps2, drac);
+        let min_speed = parts
+            .iter()
+            .map(|g| g.safety.min_speed_mps)
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(all.safety.min_speed_mps, min_speed);
+    }
+    // All drivers saw the same scenarios: equal trial counts, same configs.
     for d in [
+        DriverKind::PaperLiteral,
         DriverKind::Planner,
         DriverKind::PlannerNoHysteresis,
         DriverKind::IdmMobil,
@@ -108,7 +137,31 @@ fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
         assert!(dir.path().join("campaign").join(f).exists());
     }
     let csv = String::from_utf8(campaign_csv(&one).unwrap()).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 9 + 3);
+    assert_eq!(csv.lines().count(), 1 + 12 + 4);
+    let header = csv.lines().next().unwrap();
+    for column in [
+        "collisions_ego_at_fault",
+        "sv_sv_collisions",
+        "hard_braking_per_hour",
+        "min_ttc_p5_s",
+        "min_ttc_p50_s",
+        "ttc_below_3s_share",
+        "headway_below_1s_share",
+        "max_drac_mps2",
+        "jerk_rms_mps3",
+        "min_speed_mps",
+    ] {
+        assert!(header.split(',').any(|c| c == column), "results.csv lacks {column}");
+    }
+    let md = campaign_markdown(&one);
+    assert!(md.contains("| paper (Table I) | 8050 |"), "{md}");
+    for d in &one.drivers {
+        assert!(
+            md.contains(&format!("| {} |", d.name())),
+            "results.md lacks {}",
+            d.name()
+        );
+    }
 }
 
 #[test]
@@ -133,5 +186,5 @@ fn markdown_has_all_paper_rows() {
         );
     }
     assert!(md.contains("**Overall**") && md.contains("98.77%") && md.contains("8050"));
-    assert!(md.contains("## Baselines"));
+    assert!(md.contains("## Baselines and safety"));
 }

@@ -4,6 +4,7 @@ use decision::{Decision, Planner, PlannerConfig, Situation};
 use sim_client::episode::{run_episode, Driver, EpisodeSpec};
 use sim_client::link::{InProcess, LinkError, PlannerLink};
 use sim_client::report::{decisions_csv, json_bytes};
+use sim_client::safety::EgoCollisionKind;
 use traffic::{Scenario, SimParams, TrafficConfig};
 
 fn random_spec(seed: u64, duration_s: f64) -> EpisodeSpec {
@@ -152,4 +153,91 @@ fn transport_flag_names_what_each_transport_needs() {
         .open_channel(&decision::PlannerConfig::default(), &LinkOptions::default())
         .unwrap();
     assert_eq!(inproc.name(), "inproc");
+}
+
+/// A driver that always commands the same maneuver (the fallback's answer, overridden).
+struct Fixed {
+    config: PlannerConfig,
+    lane: u8,
+    beta: i8,
+}
+
+impl PlannerLink for Fixed {
+    fn decide(&mut self, s: &Situation) -> Result<Decision, LinkError> {
+        let mut d = decision::fallback_only(&self.config, s).unwrap();
+        d.next_maneuver = decision::Maneuver {
+            lane: self.lane,
+            beta: self.beta,
+        };
+        Ok(d)
+    }
+}
+
+fn spec_with(ego_lane: u8, svs: Vec<traffic::VehicleInit>) -> EpisodeSpec {
+    let init = |x, lane, v, desired_speed| traffic::VehicleInit {
+        x,
+        lane,
+        v,
+        desired_speed,
+    };
+    EpisodeSpec {
+        scenario: Scenario {
+            road: traffic::Road::new(2, 40.0).unwrap(),
+            ego: init(0.0, ego_lane, 20.0, 25.0),
+            svs,
+        },
+        params: SimParams::default(),
+        seed: 1,
+        duration_s: 20.0,
+        max_svs: 16,
+        record_trajectory: true,
+    }
+}
+
+#[test]
+fn rear_ending_a_slow_leader_is_the_egos_fault() {
+    // SV1 crawls at 2 m/s, 40 m ahead in the ego's lane, SV2 beside it (so that SV1 cannot
+    // make way); the ego keeps accelerating.
+    let slow = |lane| traffic::VehicleInit {
+        x: 40.0,
+        lane,
+        v: 2.0,
+        desired_speed: 2.0,
+    };
+    let spec = spec_with(2, vec![slow(2), slow(1)]);
+    let mut link = Fixed {
+        config: PlannerConfig::default(),
+        lane: 2,
+        beta: 1,
+    };
+    let e = run_episode(&spec, Driver::Planner(&mut link)).unwrap();
+    let c = e.collision.expect("the ego runs into SV1");
+    assert_eq!((c.other_id, c.kind), (1, EgoCollisionKind::EgoAtFault));
+    let m = e.metrics();
+    assert_eq!(m.collision_split.ego_at_fault, 1);
+    assert_eq!(m.collision_split.ego_total(), u64::from(m.collisions));
+    // Closing in on SV1 at 18 m/s or more from 35 m: TTC falls below 3 s, DRAC grows.
+    assert_eq!(m.safety.min_ttc_s, Some(0.0), "the last step overlaps");
+    assert!(m.safety.ttc_below_3s_steps > 0 && m.safety.max_drac_mps2 > 5.0);
+}
+
+#[test]
+fn changing_lanes_into_a_vehicle_alongside_is_the_egos_fault() {
+    // SV1 drives beside the ego in lane 1 at the same speed; the ego moves over.
+    let beside = traffic::VehicleInit {
+        x: 1.0,
+        lane: 1,
+        v: 20.0,
+        desired_speed: 20.0,
+    };
+    let spec = spec_with(2, vec![beside]);
+    let mut link = Fixed {
+        config: PlannerConfig::default(),
+        lane: 1,
+        beta: 0,
+    };
+    let e = run_episode(&spec, Driver::Planner(&mut link)).unwrap();
+    let c = e.collision.expect("the ego moves into SV1");
+    assert_eq!((c.other_id, c.kind), (1, EgoCollisionKind::EgoAtFault));
+    assert_eq!(e.sv_collisions, 0);
 }
