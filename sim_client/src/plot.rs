@@ -262,3 +262,51 @@ pub fn ablation_plot(path: &Path, with: &Episode, without: &Episode) -> Result<(
     root.present().map_err(err(path))?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(index: u64, ids: &[u32]) -> DecisionRecord {
+        DecisionRecord {
+            index,
+            time_s: 0.4 * index as f64,
+            layer: None,
+            target_lane: 1,
+            beta: 0,
+            corrective_svs: ids.len(),
+            corrective_sv_ids: ids.to_vec(),
+            svs_sent: 0,
+            ego_x_m: 0.0,
+            ego_y_m: 0.0,
+            ego_speed_mps: 0.0,
+            plan: Vec::new(),
+            solve_us: 0,
+            situation: None,
+        }
+    }
+
+    #[test]
+    fn corrective_phases_are_merged_per_reference_sv() {
+        let d = [
+            at(0, &[]),
+            at(1, &[2]),
+            at(2, &[2]),
+            at(3, &[2, 5]),
+            at(4, &[5]),
+            at(5, &[]),
+            at(6, &[2]),
+        ];
+        let by_sv = corrective_intervals_by_sv(&d, 0.4);
+        let close = |a: &[(f64, f64)], b: &[(f64, f64)]| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| (x.0 - y.0).abs() < 1e-9 && (x.1 - y.1).abs() < 1e-9)
+        };
+        assert_eq!(by_sv.iter().map(|(id, _)| *id).collect::<Vec<_>>(), vec![2, 5]);
+        assert!(close(&by_sv[0].1, &[(0.4, 1.6), (2.4, 2.8)]), "{:?}", by_sv[0].1);
+        assert!(close(&by_sv[1].1, &[(1.2, 2.0)]), "{:?}", by_sv[1].1);
+        assert!(close(&corrective_intervals(&d, 0.4), &[(0.4, 2.0), (2.4, 2.8)]));
+    }
+}

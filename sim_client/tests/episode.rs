@@ -155,7 +155,8 @@ fn transport_flag_names_what_each_transport_needs() {
     assert_eq!(inproc.name(), "inproc");
 }
 
-/// A driver that always commands the same maneuver (the fallback's answer, overridden).
+/// A driver that always commands the same maneuver and the strongest acceleration of its
+/// beta (the fallback's answer, overridden).
 struct Fixed {
     config: PlannerConfig,
     lane: u8,
@@ -169,6 +170,8 @@ impl PlannerLink for Fixed {
             lane: self.lane,
             beta: self.beta,
         };
+        // The simulator's limits clamp the set-point to its beta's acceleration.
+        d.setpoint.accel_mps2 = 10.0 * f64::from(self.beta);
         Ok(d)
     }
 }

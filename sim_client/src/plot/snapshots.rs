@@ -52,8 +52,8 @@ pub fn snapshot_instants(e: &Episode) -> Vec<usize> {
 
 /// The road at the decision instants `picks`: vehicles as rectangles, the ego's planned
 /// maneuvers over the horizon as strips coloured by beta (green decel, purple cruise, red
-/// accel), and, thinner, every kept branch of the SVs' predictions (`predictions[i]` for
-/// `picks[i]`; opacity grows with the branch probability).
+/// accel), and every kept branch of the SVs' predictions as one thin row each
+/// (`predictions[i]` for `picks[i]`; opacity grows with the branch probability).
 pub fn snapshots_plot(
     path: &Path,
     scenario: &Scenario,
@@ -104,18 +104,22 @@ pub fn snapshots_plot(
                 PathElement::new(vec![(x0, y), (x1, y)], style)
             }))
             .map_err(&err)?;
-        // SV predictions, thinner than the ego's plan so that both stay readable.
+        // SV predictions: one thin row per branch inside the lane band (most probable at the
+        // bottom), so that overlapping branches keep their colours.
         let clip = |x: f64| x.clamp(x0, x1);
         for prediction in predictions.get(slot).into_iter().flatten() {
-            for branch in &prediction.branches {
-                let alpha = 0.12 + 0.4 * branch.probability;
+            let rows = prediction.branches.len().max(1) as f64;
+            let row = 1.8 / rows;
+            for (i, branch) in prediction.branches.iter().enumerate() {
+                let alpha = 0.25 + 0.6 * branch.probability;
+                let lo = -0.9 + i as f64 * row;
                 chart
                     .draw_series(branch.steps.iter().map(|s| {
                         let yc = lane_y(s.lane);
                         Rectangle::new(
                             [
-                                (clip(s.x_from_m), yc - 0.45),
-                                (clip(s.x_to_m.max(s.x_from_m + 0.5)), yc + 0.45),
+                                (clip(s.x_from_m), yc + lo),
+                                (clip(s.x_to_m.max(s.x_from_m + 0.5)), yc + lo + 0.85 * row),
                             ],
                             beta_colour(s.beta).mix(alpha).filled(),
                         )
