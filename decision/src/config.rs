@@ -238,6 +238,9 @@ pub struct Hysteresis {
     /// the ego no longer closes in: a distance frozen at a high closing speed is otherwise
     /// kept long after the speeds matched, and the ego falls far behind.
     pub resize_release: bool,
+    /// While the SV holds the ego below its desired speed (slower by more than 0.5 m/s) the
+    /// ego is following it: reaching the release distance then does not release it.
+    pub hold_while_following: bool,
 }
 
 impl Default for Hysteresis {
@@ -252,6 +255,7 @@ impl Default for Hysteresis {
             soft_band: true,
             release_on_resuming: true,
             resize_release: true,
+            hold_while_following: true,
         }
     }
 }
@@ -274,6 +278,9 @@ pub struct CostWeights {
     /// gains at most `0.5 * 0.6 * 3 = 0.9 < w_beta[+1] = 1`, so a slow ego would never speed up.
     /// At 1.0 a single accelerating step pays (`1.8 > 1`); see `docs/formulation-notes.md`.
     pub w_speed: f64,
+    /// Extra weight on `|v_des - v_H|` at the horizon's end, per m/s: a speed deficit there
+    /// persists beyond the horizon (a cost-to-go), which three steps of `w_speed` do not see.
+    pub w_speed_terminal: f64,
     /// Terminal lane value, per m/s by which traffic ahead in the lane the plan ends in holds
     /// the ego below its desired speed.
     ///
@@ -285,6 +292,9 @@ pub struct CostWeights {
     pub lane_lookahead_m: f64,
     /// Per m/s^2 of planned braking per step (with `ego.continuous_accel`).
     pub w_brake: f64,
+    /// Per change of the longitudinal maneuver state (an action with `d_long != 0`): the
+    /// paper's aim of few throttle / brake switches, priced on the switch itself.
+    pub w_switch: f64,
     /// Per m/s^2 of planned braking beyond `ego.comfort_decel_mps2` per step.
     pub w_hard_brake: f64,
 }
@@ -292,14 +302,16 @@ pub struct CostWeights {
 impl Default for CostWeights {
     fn default() -> Self {
         Self {
-            w_slack: 100.0,
+            w_slack: 3.0,
             w_global: 1.0e4,
             w_lane_change: 4.0,
             w_beta: [2.0, 0.0, 1.0],
             w_speed: 1.0,
+            w_speed_terminal: 4.0,
             w_lane_speed: 3.0,
             lane_lookahead_m: 100.0,
             w_brake: 1.0,
+            w_switch: 2.0,
             w_hard_brake: 20.0,
         }
     }
@@ -435,7 +447,14 @@ impl PlannerConfig {
         }
         if c.w_beta
             .iter()
-            .chain([&c.w_lane_change, &c.w_speed, &c.w_brake, &c.w_hard_brake])
+            .chain([
+                &c.w_lane_change,
+                &c.w_speed,
+                &c.w_brake,
+                &c.w_switch,
+                &c.w_speed_terminal,
+                &c.w_hard_brake,
+            ])
             .any(|w| !(w.is_finite() && *w >= 0.0))
         {
             return bad("cost", "weights must be finite and non-negative");

@@ -114,12 +114,16 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
         if r.actions[h].lateral != 0 {
             cost += w.w_lane_change;
         }
+        if r.actions[h].longitudinal != 0 {
+            cost += w.w_switch;
+        }
         cost += w.w_speed * (problem.desired_speed - r.v[h]).abs();
         cost += w.w_brake * (-r.accel[h]).max(0.0);
         cost += w.w_hard_brake * (problem.comfort_decel - r.accel[h]).max(0.0);
     }
-    if let Some(last) = r.maneuvers.last() {
+    if let (Some(last), Some(v)) = (r.maneuvers.last(), r.v.last()) {
         cost += problem.lane_value[(last.lane - 1) as usize];
+        cost += w.w_speed_terminal * (problem.desired_speed - v).abs();
     }
     cost
 }
@@ -201,7 +205,8 @@ fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode
     for h in 0..h_len {
         let mut speed: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, dt)).collect();
         m.add_row(-v0, problem.speed_cap - v0, &mut speed.clone());
-        let dev = m.add_col(w.w_speed, 0.0, f64::INFINITY, false);
+        let terminal = if h + 1 == h_len { w.w_speed_terminal } else { 0.0 };
+        let dev = m.add_col(w.w_speed + terminal, 0.0, f64::INFINITY, false);
         speed.push((dev, 1.0));
         m.add_row(problem.desired_speed - v0, f64::INFINITY, &mut speed);
         let mut down: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, -dt)).collect();
@@ -239,12 +244,7 @@ fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode
         let result = solver.solve(&m, None).expect("HiGHS LP of the exact evaluation");
         match (result.status, result.columns) {
             (MipStatus::Optimal, Some(cols)) => Some(u.iter().map(|&c| cols[c]).collect()),
-            (status, _) => {
-                if std::env::var("HMDP_DEBUG_LP").is_ok() && status != MipStatus::Infeasible {
-                    eprintln!("LP status {status:?}");
-                }
-                None
-            }
+            _ => None,
         }
     })
 }

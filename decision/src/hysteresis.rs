@@ -17,12 +17,17 @@ use crate::types::CorrectiveEntry;
 /// rollout) would let the speed term pull the ego straight back into the band — the
 /// oscillation hysteresis is meant to remove. The regime is kept while the ego follows, as in
 /// the paper's Case 1, until the gap is genuinely safe or the SV leaves the ego's lane.
+///
+/// `following`: the SV holds the ego below its desired speed, so the ego is following it: then
+/// reaching the release distance does not release it (the band keeps the ego there, and a
+/// release would only let the speed term pull it back in, a trigger-release cycle).
 pub fn refresh(
     sv_id: u32,
     previous: Option<CorrectiveEntry>,
     min_gap: Option<f64>,
     min_gap_resuming: Option<f64>,
     current: Thresholds,
+    following: bool,
 ) -> Option<CorrectiveEntry> {
     let gap = min_gap?;
     if gap < current.trigger {
@@ -33,7 +38,7 @@ pub fn refresh(
         }));
     }
     match previous {
-        Some(frozen) if min_gap_resuming.unwrap_or(gap) >= frozen.release_m => None,
+        Some(frozen) if !following && min_gap_resuming.unwrap_or(gap) >= frozen.release_m => None,
         other => other,
     }
 }
@@ -52,16 +57,16 @@ mod tests {
 
     #[test]
     fn triggers_below_the_trigger_distance_and_freezes() {
-        let e = refresh(7, None, Some(29.0), Some(28.0), t(30.0, 36.0)).unwrap();
+        let e = refresh(7, None, Some(29.0), Some(28.0), t(30.0, 36.0), false).unwrap();
         assert_eq!((e.sv_id, e.trigger_m, e.release_m), (7, 30.0, 36.0));
         // Still closer than the (now smaller) trigger: the freeze from the first trigger stays.
-        let again = refresh(7, Some(e), Some(20.0), Some(19.0), t(25.0, 29.0)).unwrap();
+        let again = refresh(7, Some(e), Some(20.0), Some(19.0), t(25.0, 29.0), false).unwrap();
         assert_eq!(again, e);
     }
 
     #[test]
     fn does_not_trigger_at_or_above_the_trigger_distance() {
-        assert_eq!(refresh(1, None, Some(30.0), Some(29.0), t(30.0, 36.0)), None);
+        assert_eq!(refresh(1, None, Some(30.0), Some(29.0), t(30.0, 36.0), false), None);
     }
 
     #[test]
@@ -73,7 +78,7 @@ mod tests {
         };
         // Above the current trigger but below the frozen release: keep.
         assert_eq!(
-            refresh(1, Some(frozen), Some(33.0), Some(32.0), t(28.0, 31.0)),
+            refresh(1, Some(frozen), Some(33.0), Some(32.0), t(28.0, 31.0), false),
             Some(frozen)
         );
     }
@@ -88,10 +93,13 @@ mod tests {
         // The ego slowed, so the current release (31) is below the gap (33): the frozen
         // release (36) still holds it in corrective mode.
         assert_eq!(
-            refresh(1, Some(frozen), Some(33.0), Some(33.0), t(26.0, 31.0)),
+            refresh(1, Some(frozen), Some(33.0), Some(33.0), t(26.0, 31.0), false),
             Some(frozen)
         );
-        assert_eq!(refresh(1, Some(frozen), Some(36.5), Some(36.0), t(26.0, 31.0)), None);
+        assert_eq!(
+            refresh(1, Some(frozen), Some(36.5), Some(36.0), t(26.0, 31.0), false),
+            None
+        );
     }
 
     #[test]
@@ -103,9 +111,25 @@ mod tests {
         };
         // Cruising keeps the gap at the release distance, but accelerating would dip below it.
         assert_eq!(
-            refresh(1, Some(frozen), Some(36.0), Some(35.2), t(26.0, 31.0)),
+            refresh(1, Some(frozen), Some(36.0), Some(35.2), t(26.0, 31.0), false),
             Some(frozen)
         );
+    }
+
+    #[test]
+    fn holds_while_following_a_slower_leader() {
+        let frozen = CorrectiveEntry {
+            sv_id: 1,
+            release_m: 36.0,
+            trigger_m: 30.0,
+        };
+        // Far beyond the release distance, but the SV still holds the ego back: kept.
+        assert_eq!(
+            refresh(1, Some(frozen), Some(50.0), Some(49.0), t(26.0, 31.0), true),
+            Some(frozen)
+        );
+        // It leaves the ego's lane: released all the same.
+        assert_eq!(refresh(1, Some(frozen), None, None, t(26.0, 31.0), true), None);
     }
 
     #[test]
@@ -115,6 +139,6 @@ mod tests {
             release_m: 36.0,
             trigger_m: 30.0,
         };
-        assert_eq!(refresh(1, Some(frozen), None, None, t(30.0, 36.0)), None);
+        assert_eq!(refresh(1, Some(frozen), None, None, t(30.0, 36.0), false), None);
     }
 }

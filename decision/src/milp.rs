@@ -154,8 +154,8 @@ impl<'p> Builder<'p> {
             let act = [
                 self.m.add_col(w.w_lane_change, 0.0, 1.0, true),
                 self.m.add_col(w.w_lane_change, 0.0, 1.0, true),
-                self.m.add_col(0.0, 0.0, 1.0, true),
-                self.m.add_col(0.0, 0.0, 1.0, true),
+                self.m.add_col(w.w_switch, 0.0, 1.0, true),
+                self.m.add_col(w.w_switch, 0.0, 1.0, true),
             ];
             // The terminal lane value is charged on the last step's lane.
             let lane = (0..p.lanes as usize)
@@ -169,9 +169,10 @@ impl<'p> Builder<'p> {
             self.cols.lane.push(lane);
             self.cols.beta.push(beta);
             self.cols.accel.push(self.m.add_col(0.0, u_min, u_max, false));
-            self.cols
-                .speed_dev
-                .push(self.m.add_col(w.w_speed, 0.0, f64::INFINITY, false));
+            // The terminal speed weight is charged on the last step's deviation.
+            let terminal = if s + 1 == p.horizon { w.w_speed_terminal } else { 0.0 };
+            let dev = self.m.add_col(w.w_speed + terminal, 0.0, f64::INFINITY, false);
+            self.cols.speed_dev.push(dev);
             self.cols
                 .brake
                 .push(self.m.add_col(w.w_brake, 0.0, f64::INFINITY, false));

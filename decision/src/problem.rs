@@ -136,12 +136,16 @@ fn resuming_rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, horizon: usiz
     rollout(kin, lanes, start, &actions).expect("stepping beta up to +1 is admissible")
 }
 
+/// An SV slower than the ego's desired speed by more than this holds the ego back, m/s.
+const FOLLOWING_MARGIN_MPS: f64 = 0.5;
+
 /// Everything the prepared problem needs to know about the ego and the model.
 struct Context<'a> {
     config: &'a PlannerConfig,
     road: &'a Road,
     kin: Kinematics,
     start: EgoStart,
+    desired_speed: f64,
     /// `z_eps sqrt(Sigma_Delta(h))` and `Sigma_Delta(h)` per step.
     sigmas: Vec<f64>,
     variances: Vec<f64>,
@@ -180,6 +184,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         road,
         kin,
         start,
+        desired_speed: ego.desired_speed_mps,
         sigmas: variances.iter().map(|&var| z * var.sqrt()).collect(),
         variances,
         z,
@@ -338,6 +343,7 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
             min_gap_on(&ctx.nominal),
             min_gap_on(&ctx.release_rollout),
             current,
+            config.hysteresis.hold_while_following && sv.v_mps < ctx.desired_speed - FOLLOWING_MARGIN_MPS,
         );
     }
     if let Some(entry) = c.corrective {

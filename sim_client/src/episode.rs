@@ -293,10 +293,13 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
                     );
                     let decision = link.decide(&situation)?;
                     let m = decision.next_maneuver;
-                    world.set_ego_command(EgoCommand {
-                        target_lane: m.lane,
-                        beta: m.beta,
-                    })?;
+                    world.set_ego_command_with_accel(
+                        EgoCommand {
+                            target_lane: m.lane,
+                            beta: m.beta,
+                        },
+                        decision.setpoint.accel_mps2,
+                    )?;
                     let corrective_sv_ids = decision.memory.corrective.iter().map(|c| c.sv_id).collect();
                     memory = decision.memory;
                     DecisionRecord {

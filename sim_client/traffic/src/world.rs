@@ -267,7 +267,7 @@ impl World {
     }
 
     /// Sets the command with an acceleration set-point: the ego tracks `accel` (jerk-limited,
-    /// within `[a_dec, a_acc]`) instead of the fixed acceleration of `cmd.beta`.
+    /// within `[idm.a_min, a_acc]`) instead of the fixed acceleration of `cmd.beta`.
     pub fn set_ego_command_with_accel(&mut self, cmd: EgoCommand, accel: f64) -> Result<(), SimError> {
         if !accel.is_finite() {
             return Err(SimError::InvalidParameter {
@@ -411,7 +411,8 @@ impl World {
         match (v.kind, self.ego_mode) {
             (VehicleKind::Ego, EgoMode::Commanded) => {
                 let target = match (self.ego_accel_setpoint, v.beta) {
-                    (Some(a), _) => a.clamp(p.a_dec, p.a_acc),
+                    // The physical limits every vehicle has (IDM's strongest braking).
+                    (Some(a), _) => a.clamp(p.idm.a_min, p.a_acc),
                     (None, 1) => p.a_acc,
                     (None, -1) => p.a_dec,
                     (None, _) => 0.0,
