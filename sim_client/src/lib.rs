@@ -10,14 +10,19 @@
 
 pub mod campaign;
 pub mod cases;
+pub mod connect;
 pub mod episode;
 pub mod error;
 pub mod link;
 pub mod load;
 pub mod metrics;
 pub mod paper;
+pub mod planner_process;
 pub mod plot;
 pub mod report;
 
+pub use connect::Transport;
 pub use error::{Result, SimClientError};
-pub use link::{InProcess, LinkError, LinkOptions, PlanChannel, PlannerLink, RemoteLink, Transport, ZenohTarget};
+pub use link::{InProcess, LinkError, LinkOptions, Planned, PlannerLink, RemoteLink};
+pub use transport::zenoh::ZenohTarget;
+pub use transport::PlanChannel;

@@ -7,9 +7,9 @@
 
 use std::time::{Duration, Instant};
 
-use iceoryx2_transport::{Client, ClientOptions, Exchange};
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
 use system_tests::{case1_decisions, free_port, scratch_dir, worked_example_request, Iceoryx2Prefix, Process};
+use transport::iceoryx2::{Client, ClientOptions, Exchange};
 
 /// How long a planner may take to start answering (a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
@@ -25,6 +25,7 @@ fn connect(prefix: &str, name: &str) -> Client {
         prefix: Some(prefix.to_string()),
         ready_timeout: STARTUP,
         node_name: name.to_string(),
+        ..ClientOptions::default()
     };
     Client::connect(&options).expect("the planner's iceoryx2 services")
 }
@@ -34,7 +35,9 @@ fn connect(prefix: &str, name: &str) -> Client {
 fn wait_until_serving(client: &mut Client, planner: &Process) {
     let give_up = Instant::now() + STARTUP;
     loop {
-        let exchange = client.request(request(999, 0), Duration::from_millis(500)).unwrap();
+        let exchange = client
+            .request(PlanRequest::probe(999), Duration::from_millis(500))
+            .unwrap();
         if exchange.response.is_some() {
             return;
         }
@@ -67,8 +70,8 @@ fn rejection(response: &PlanResponse) -> (RejectReason, String) {
     }
 }
 
-fn iceoryx2_config(prefix: &str) -> iceoryx2_transport::IceoryxConfig {
-    iceoryx2_transport::config(Some(prefix)).unwrap()
+fn iceoryx2_config(prefix: &str) -> transport::iceoryx2::IceoryxConfig {
+    transport::iceoryx2::config(Some(prefix)).unwrap()
 }
 
 #[test]
@@ -201,10 +204,10 @@ fn planner_killed_and_restarted_clients_recover_and_stale_memory_is_removed() {
             sequence,
         );
     }
-    assert_eq!(iceoryx2_transport::dead_nodes(&config), 0);
+    assert_eq!(transport::iceoryx2::dead_nodes(&config), 0);
     planner.kill();
     assert!(
-        iceoryx2_transport::dead_nodes(&config) >= 1,
+        transport::iceoryx2::dead_nodes(&config) >= 1,
         "a SIGKILLed planner leaves its node behind"
     );
     // No answer, but no hang either: every request returns by its wait.
@@ -236,7 +239,7 @@ fn planner_killed_and_restarted_clients_recover_and_stale_memory_is_removed() {
         sequence += 1;
     }
     assert_eq!(
-        iceoryx2_transport::dead_nodes(&config),
+        transport::iceoryx2::dead_nodes(&config),
         0,
         "the restarted planner removed the dead node's resources"
     );
@@ -280,7 +283,7 @@ fn a_vehicle_killed_mid_request_does_not_disturb_the_others() {
     }
     // A new vehicle (a new node) removes what the victim left behind.
     drop(connect(&prefix, "vkill-newcomer"));
-    assert_eq!(iceoryx2_transport::dead_nodes(&iceoryx2_config(&prefix)), 0);
+    assert_eq!(transport::iceoryx2::dead_nodes(&iceoryx2_config(&prefix)), 0);
 }
 
 #[test]
@@ -292,12 +295,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     let mut planner = start_planner(&prefix, "both-planner", &["--zenoh-listen", &endpoint]);
     let mut shm = connect(&prefix, "both-vehicle");
     wait_until_serving(&mut shm, &planner);
-    let json = serde_json::json!({
-        "mode": "client",
-        "connect": { "endpoints": [endpoint] },
-        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
-    });
-    let session = zenoh::open(zenoh::Config::from_json5(&json.to_string()).unwrap())
+    let session = zenoh::open(transport::zenoh::client_config(&endpoint).unwrap())
         .wait()
         .expect("a zenoh session to the planner");
     let over_zenoh = |sequence: u64| -> PlanResponse {
@@ -325,7 +323,8 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     drop(session);
     drop(shm);
     assert!(planner.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()));
-    // Both front ends fed one service: its final statistics count every answer (the probe too).
+    // Both front ends fed one service: its final statistics count every answer, the probes
+    // apart.
     let log = planner.log();
     let stats = log
         .lines()
@@ -333,6 +332,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
         .and_then(|l| l.split("stats=").nth(1))
         .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
     let stats: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
-    let answered = stats["answered"].as_u64().unwrap();
-    assert!(answered >= 10, "answered {answered}: {stats}");
+    assert_eq!(stats["answered"].as_u64(), Some(10), "{stats}");
+    assert_eq!(stats["by_layer"]["rejected"].as_u64(), Some(0), "{stats}");
+    assert!(stats["probes"].as_u64().is_some_and(|p| p >= 1), "{stats}");
 }

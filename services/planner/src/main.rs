@@ -52,6 +52,14 @@ struct ServeArgs {
     /// iceoryx2 clients (vehicles) that may be connected at once.
     #[arg(long, default_value_t = 64, requires = "iceoryx2")]
     iceoryx2_max_clients: usize,
+    /// Latency mode: the iceoryx2 server thread spins (busy polls) for requests instead of
+    /// sleeping on the request event, going back to the event after `--busy-poll-window`
+    /// without a request. Costs a core while vehicles send.
+    #[arg(long, requires = "iceoryx2")]
+    busy_poll: bool,
+    /// How long the server keeps spinning after the last request, e.g. `500ms`.
+    #[arg(long, value_parser = humantime::parse_duration, default_value = "1s", requires = "busy_poll")]
+    busy_poll_window: std::time::Duration,
     /// Zenoh configuration file (JSON5, as zenohd's), e.g. deploy/zenoh/planner.json5;
     /// --zenoh-listen / --zenoh-connect replace its endpoints.
     #[arg(long, value_name = "FILE")]
@@ -80,22 +88,13 @@ fn serve(args: ServeArgs) -> Result<()> {
     use std::sync::Arc;
     use std::time::Duration;
 
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn")),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: journald and log files get plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
     let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
     if !zenoh_wanted && !args.iceoryx2 {
         anyhow::bail!(
             "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
         );
     }
-    let planner_config = load_config(args.config.as_ref())?;
+    let planner_config = supervise::planner_config(args.config.as_deref())?;
     let mut config = ServiceConfig::default();
     if let Some(w) = args.workers {
         config.workers = w.max(1);
@@ -109,7 +108,8 @@ fn serve(args: ServeArgs) -> Result<()> {
         tracing::warn!(ms = args.inject_solve_delay_ms, "TEST ONLY: injected solve delay");
     }
     let zenoh_config = if zenoh_wanted {
-        Some(planner::zenoh_front::service_config(
+        Some(transport::zenoh::config(
+            transport::zenoh::Mode::Peer,
             args.zenoh_config.as_deref(),
             &args.zenoh_listen,
             &args.zenoh_connect,
@@ -133,9 +133,16 @@ fn serve(args: ServeArgs) -> Result<()> {
     let stop_iceoryx2 = Arc::new(AtomicBool::new(false));
     let (iceoryx2_done_tx, iceoryx2_done) = tokio::sync::oneshot::channel::<Result<()>>();
     let iceoryx2_thread = if args.iceoryx2 {
-        let options = iceoryx2_transport::ServerOptions {
+        let options = transport::iceoryx2::ServerOptions {
             prefix: args.iceoryx2_prefix.clone(),
             max_clients: args.iceoryx2_max_clients,
+            wait: if args.busy_poll {
+                transport::iceoryx2::WaitMode::BusyPoll {
+                    window: args.busy_poll_window,
+                }
+            } else {
+                transport::iceoryx2::WaitMode::Event
+            },
             ..Default::default()
         };
         let service = Arc::clone(&service);
@@ -175,7 +182,7 @@ fn serve(args: ServeArgs) -> Result<()> {
             }
         };
         let outcome = tokio::select! {
-            _ = termination_signal() => Ok(()),
+            _ = supervise::termination_signal() => Ok(()),
             ended = iceoryx2_ended => match ended {
                 Ok(()) => Err(anyhow::anyhow!("the iceoryx2 front end stopped")),
                 Err(e) => Err(e.context("iceoryx2 front end")),
@@ -208,40 +215,12 @@ fn serve(args: ServeArgs) -> Result<()> {
     result
 }
 
-/// Resolves on SIGINT or SIGTERM.
-async fn termination_signal() {
-    let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::warn!("cannot watch SIGTERM: {e}");
-            let _ = tokio::signal::ctrl_c().await;
-            return;
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = term.recv() => {}
-    }
-}
-
-fn load_config(path: Option<&PathBuf>) -> Result<PlannerConfig> {
-    match path {
-        None => Ok(PlannerConfig::default()),
-        Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            PlannerConfig::from_toml_str(&text).with_context(|| format!("parsing {}", p.display()))
-        }
-    }
-}
-
 fn main() -> Result<()> {
-    // Die quietly on a closed stdout (`... | head`), as command-line tools do, instead of
-    // panicking in `println!`. SAFETY: resets a disposition before any thread exists.
-    #[cfg(unix)]
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL)
-    };
     let cli = Cli::parse();
+    supervise::init_process(match cli.command {
+        Command::Serve(_) => "info,zenoh=warn",
+        _ => "warn",
+    });
     match cli.command {
         Command::Bench {
             json,
@@ -249,7 +228,7 @@ fn main() -> Result<()> {
             seed,
             config,
         } => {
-            let config = load_config(config.as_ref())?;
+            let config = supervise::planner_config(config.as_deref())?;
             let report = planner::bench::run(&config, per_class, seed)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
