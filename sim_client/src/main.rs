@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_client::campaign::{self, CampaignSettings};
 use sim_client::connect::BUSY_POLL_WINDOW;
-use sim_client::load::{self, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines};
+use sim_client::load::{self, parse_run_length, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines};
 use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPlanner};
 use sim_client::{cases, report, Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
@@ -145,15 +145,6 @@ impl Common {
                 Ok((Transport::Iceoryx2 { prefix, wait }, planner))
             }
         }
-    }
-}
-
-/// A run length: a plain number is seconds (`20`), else a duration (`20s`, `10m`, `1h`).
-fn parse_run_length(s: &str) -> Result<Duration, String> {
-    match s.parse::<f64>() {
-        Ok(secs) if secs.is_finite() && secs >= 0.0 => Ok(Duration::from_secs_f64(secs)),
-        Ok(_) => Err(format!("`{s}` is not a length of time")),
-        Err(_) => humantime::parse_duration(s).map_err(|e| e.to_string()),
     }
 }
 

@@ -174,7 +174,7 @@ fn invalid_requests_get_typed_rejections() {
         answered(client.request(r, Duration::from_secs(5)).unwrap(), v, s)
     };
     let mut wrong_version = request(5, 1);
-    wrong_version.version = 2;
+    wrong_version.version = 1;
     assert_eq!(
         rejection(&ask(wrong_version)),
         (RejectReason::UnsupportedVersion, "version".into())

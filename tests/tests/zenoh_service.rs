@@ -273,7 +273,7 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
         let r = one(&valid[..len]);
         assert_eq!(rejection(&r), RejectReason::Malformed, "truncated to {len} bytes");
     }
-    // More SVs than the capacity (17 > 16): the list length is patched in place.
+    // More SVs than the capacity (65 > 64): the list length is patched in place.
     let mut full = request(9, 2);
     let sv = *full.svs.first().unwrap();
     while full.svs.len() < protocol::MAX_SVS {
@@ -284,10 +284,10 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
     }
     let mut bytes = encode_bincode(&full);
     const SVS_LENGTH_OFFSET: usize = 81; // docs/protocol.md: the `svs` length, u64 LE
-    const SV_SIZE: usize = 36;
-    assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 16u64.to_le_bytes());
-    bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&17u64.to_le_bytes());
-    let end_of_svs = SVS_LENGTH_OFFSET + 8 + 16 * SV_SIZE;
+    const SV_SIZE: usize = 60;
+    assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 64u64.to_le_bytes());
+    bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&65u64.to_le_bytes());
+    let end_of_svs = SVS_LENGTH_OFFSET + 8 + 64 * SV_SIZE;
     let copy: Vec<u8> = bytes[end_of_svs - SV_SIZE..end_of_svs].to_vec();
     bytes.splice(end_of_svs..end_of_svs, copy);
     let r = one(&bytes);

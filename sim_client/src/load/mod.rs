@@ -101,6 +101,16 @@ impl LoadSettings {
     }
 }
 
+/// A run length: a plain number is seconds (`20`, `0.5`), else a duration (`20s`, `10m`,
+/// `1h`).
+pub fn parse_run_length(s: &str) -> std::result::Result<Duration, String> {
+    match s.parse::<f64>() {
+        Ok(secs) if secs.is_finite() && secs >= 0.0 => Ok(Duration::from_secs_f64(secs)),
+        Ok(_) => Err(format!("`{s}` is not a length of time")),
+        Err(_) => humantime::parse_duration(s).map_err(|e| e.to_string()),
+    }
+}
+
 /// Runs `settings.clients` vehicles (threads) until the duration is over; returns their
 /// merged measurements.
 pub fn run_part(settings: &LoadSettings, start: Instant) -> Result<LoadPart> {
@@ -197,5 +207,21 @@ impl Drop for ProgressLines {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_lengths_are_seconds_or_durations() {
+        assert_eq!(parse_run_length("20"), Ok(Duration::from_secs(20)));
+        assert_eq!(parse_run_length("0.5"), Ok(Duration::from_millis(500)));
+        assert_eq!(parse_run_length("20s"), Ok(Duration::from_secs(20)));
+        assert_eq!(parse_run_length("10m"), Ok(Duration::from_secs(600)));
+        assert_eq!(parse_run_length("1500ms"), Ok(Duration::from_millis(1500)));
+        assert!(parse_run_length("-3").is_err());
+        assert!(parse_run_length("soon").is_err());
     }
 }

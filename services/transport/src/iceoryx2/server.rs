@@ -5,7 +5,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::server::Server;
 use protocol::{
     PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
     ICEORYX2_PLAN_SERVICE,
@@ -131,6 +133,20 @@ pub fn serve(
         .create()
         .map_err(setup("server port (is another planner serving this prefix?)"))?;
     tracing::info!(service = ICEORYX2_PLAN_SERVICE, "planner serving over iceoryx2");
+    receive_until(&server, &listener, &notifier, options, shutdown, &mut handler);
+    tracing::info!("iceoryx2 server stopped");
+    Ok(())
+}
+
+/// The server thread's loop: wait (or spin) for requests, hand each to `handler`.
+fn receive_until(
+    server: &Server<Ipc, PlanRequest, (), PlanResponse, ()>,
+    listener: &Listener<Ipc>,
+    notifier: &Arc<Notifier<Ipc>>,
+    options: &ServerOptions,
+    shutdown: &AtomicBool,
+    handler: &mut impl FnMut(Responder),
+) {
     let mut last_request = Instant::now();
     while !shutdown.load(Ordering::Relaxed) {
         let spinning = match options.wait {
@@ -149,7 +165,7 @@ pub fn serve(
                     last_request = Instant::now();
                     handler(Responder {
                         request,
-                        notifier: Arc::clone(&notifier),
+                        notifier: Arc::clone(notifier),
                     })
                 }
                 Ok(None) => break,
@@ -160,6 +176,4 @@ pub fn serve(
             }
         }
     }
-    tracing::info!("iceoryx2 server stopped");
-    Ok(())
 }
