@@ -160,7 +160,8 @@ impl Client {
                 return Ok(unanswered);
             }
             if spin_until.is_some_and(|until| now < until) {
-                std::hint::spin_loop();
+                // Yielding keeps the core for a runnable thread (a solver) when there is one.
+                std::thread::yield_now();
                 continue;
             }
             // Any answer wakes every client; the loop looks whether it was ours.

@@ -34,8 +34,9 @@ pub enum WaitMode {
     /// Sleep on the event until notified: no CPU while idle, a wake-up's latency per message.
     #[default]
     Event,
-    /// Spin (busy poll) for up to `window` after the last message before sleeping on the
-    /// event again: lowest latency, a core busy while messages keep coming.
+    /// Spin (busy poll, yielding the core between polls) for up to `window` after the last
+    /// message before sleeping on the event again: lowest latency when a core is free, a core
+    /// busy while messages keep coming.
     BusyPoll { window: Duration },
 }
 
@@ -154,7 +155,8 @@ fn receive_until(
             WaitMode::BusyPoll { window } => last_request.elapsed() < window,
         };
         if spinning {
-            std::hint::spin_loop();
+            // Yielding keeps the core for a runnable thread (a solver) when there is one.
+            std::thread::yield_now();
         } else if let Err(e) = listener.timed_wait(|_| {}, options.shutdown_poll) {
             tracing::warn!("waiting for requests: {e}");
             std::thread::sleep(options.shutdown_poll);
