@@ -165,3 +165,40 @@ pub fn case1_decisions(dir: &std::path::Path, name: &str, args: &[&str], planner
     );
     std::fs::read(dir.join(name).join("case1/decisions.csv")).expect("decisions.csv")
 }
+
+/// `vehicles` vehicles at once, each on its own thread with its own connection
+/// (`connect(vehicle)`), asking `requests` times (`ask(connection, vehicle, sequence)`):
+/// every request must get a decision, each exactly once.
+pub fn concurrent_vehicles_each_answered_once<C>(
+    vehicles: u64,
+    requests: u64,
+    connect: impl Fn(u64) -> C + Sync,
+    ask: impl Fn(&mut C, u64, u64) -> protocol::PlanResponse + Sync,
+) {
+    let mut all: Vec<(u64, u64)> = std::thread::scope(|scope| {
+        let threads: Vec<_> = (1..=vehicles)
+            .map(|vehicle| {
+                let (connect, ask) = (&connect, &ask);
+                scope.spawn(move || {
+                    let mut connection = connect(vehicle);
+                    (1..=requests)
+                        .map(|sequence| {
+                            let r = ask(&mut connection, vehicle, sequence);
+                            assert!(r.outcome.as_decided().is_some(), "{r:?}");
+                            (r.vehicle_id, r.sequence)
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        threads
+            .into_iter()
+            .flat_map(|t| t.join().expect("vehicle thread"))
+            .collect()
+    });
+    all.sort_unstable();
+    let expected: Vec<(u64, u64)> = (1..=vehicles)
+        .flat_map(|v| (1..=requests).map(move |s| (v, s)))
+        .collect();
+    assert_eq!(all, expected);
+}

@@ -8,7 +8,10 @@
 use std::time::{Duration, Instant};
 
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
-use system_tests::{case1_decisions, free_port, scratch_dir, worked_example_request, Iceoryx2Prefix, Process};
+use system_tests::{
+    case1_decisions, concurrent_vehicles_each_answered_once, free_port, scratch_dir, worked_example_request,
+    Iceoryx2Prefix, Process,
+};
 use transport::iceoryx2::{Client, ClientOptions, Exchange};
 
 /// How long a planner may take to start answering (a shared machine).
@@ -102,31 +105,17 @@ fn eight_concurrent_vehicles_each_get_every_answer_exactly_once() {
     let planner = start_planner(&prefix, "eight-planner", &[]);
     let mut probe = connect(&prefix, "probe");
     wait_until_serving(&mut probe, &planner);
-    let threads: Vec<_> = (1..=8u64)
-        .map(|vehicle| {
-            let prefix = prefix.clone();
-            std::thread::spawn(move || {
-                let mut client = connect(&prefix, &format!("vehicle-{vehicle}"));
-                (1..=20u64)
-                    .map(|sequence| {
-                        let exchange = client
-                            .request(request(vehicle, sequence), Duration::from_secs(5))
-                            .unwrap();
-                        let r = answered(exchange, vehicle, sequence);
-                        assert!(r.outcome.as_decided().is_some(), "{r:?}");
-                        (r.vehicle_id, r.sequence)
-                    })
-                    .collect::<Vec<_>>()
-            })
-        })
-        .collect();
-    let mut all = Vec::new();
-    for t in threads {
-        all.extend(t.join().expect("vehicle thread"));
-    }
-    all.sort_unstable();
-    let expected: Vec<(u64, u64)> = (1..=8u64).flat_map(|v| (1..=20u64).map(move |s| (v, s))).collect();
-    assert_eq!(all, expected);
+    concurrent_vehicles_each_answered_once(
+        8,
+        20,
+        |vehicle| connect(&prefix, &format!("vehicle-{vehicle}")),
+        |client, vehicle, sequence| {
+            let exchange = client
+                .request(request(vehicle, sequence), Duration::from_secs(5))
+                .unwrap();
+            answered(exchange, vehicle, sequence)
+        },
+    );
 }
 
 #[test]

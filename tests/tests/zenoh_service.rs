@@ -11,7 +11,10 @@ use protocol::containers::Vector as _;
 use protocol::{
     decode_bincode, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason, WireFormat,
 };
-use system_tests::{binary, case1_decisions, scratch_dir, worked_example_request, ZenohPlanner as Planner};
+use system_tests::{
+    binary, case1_decisions, concurrent_vehicles_each_answered_once, scratch_dir, worked_example_request,
+    ZenohPlanner as Planner,
+};
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 
 /// How long a planner may take to start answering (debug builds on a shared machine).
@@ -82,31 +85,17 @@ fn case1_over_zenoh_matches_in_process_byte_for_byte() {
 fn eight_concurrent_vehicles_each_get_every_answer_exactly_once() {
     let planner = Planner::start("concurrent", &[]);
     drop(Client::connect(&planner));
-    let threads: Vec<_> = (1..=8u64)
-        .map(|vehicle| {
-            let endpoint = planner.endpoint.clone();
-            std::thread::spawn(move || {
-                let client = Client::connect_to(&endpoint, &String::new);
-                let mut seen = Vec::new();
-                for sequence in 1..=20u64 {
-                    let bytes = encode_bincode(&request(vehicle, sequence));
-                    let replies = client.ask_raw(&bytes, WireFormat::Bincode, Duration::from_secs(5));
-                    assert_eq!(replies.len(), 1, "vehicle {vehicle} sequence {sequence}: one answer");
-                    let r: PlanResponse = decode_bincode(&replies[0]).unwrap();
-                    assert!(r.outcome.as_decided().is_some(), "{r:?}");
-                    seen.push((r.vehicle_id, r.sequence));
-                }
-                seen
-            })
-        })
-        .collect();
-    let mut all = Vec::new();
-    for t in threads {
-        all.extend(t.join().expect("vehicle thread"));
-    }
-    all.sort_unstable();
-    let expected: Vec<(u64, u64)> = (1..=8u64).flat_map(|v| (1..=20u64).map(move |s| (v, s))).collect();
-    assert_eq!(all, expected);
+    concurrent_vehicles_each_answered_once(
+        8,
+        20,
+        |_| Client::connect_to(&planner.endpoint, &String::new),
+        |client, vehicle, sequence| {
+            let bytes = encode_bincode(&request(vehicle, sequence));
+            let replies = client.ask_raw(&bytes, WireFormat::Bincode, Duration::from_secs(5));
+            assert_eq!(replies.len(), 1, "vehicle {vehicle} sequence {sequence}: one answer");
+            decode_bincode(&replies[0]).unwrap()
+        },
+    );
 }
 
 #[test]
