@@ -1,4 +1,4 @@
-//! Untrusted bytes through both decoders the planner service uses (`WireFormat::decode`),
+//! Untrusted bytes through both decoders the planner service uses (`protocol::WireFormat::decode`),
 //! then validation, then re-encoding. Any panic, hang or unbounded allocation is a bug; so is
 //! a decoded request that does not survive its own round trip.
 #![no_main]
