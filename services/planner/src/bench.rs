@@ -45,6 +45,15 @@ pub struct BenchReport {
     pub classes: Vec<ClassReport>,
 }
 
+/// The share of `agreed` among `checked` (1 when nothing was checked).
+fn rate(agreed: usize, checked: usize) -> f64 {
+    if checked == 0 {
+        1.0
+    } else {
+        agreed as f64 / checked as f64
+    }
+}
+
 /// Run the benchmark.
 pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchReport, DecisionError> {
     let mut milp_config = config.clone();
@@ -99,19 +108,11 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
             class,
             milp: Percentiles::of_samples(&mut t_milp),
             enumeration: Percentiles::of_samples(&mut t_oracle),
-            agreement_rate: if per_class == 0 {
-                1.0
-            } else {
-                agreed as f64 / per_class as f64
-            },
+            agreement_rate: rate(agreed, per_class),
             layers,
         });
     }
-    agreement.rate = if agreement.checked == 0 {
-        1.0
-    } else {
-        agreement.agreed as f64 / agreement.checked as f64
-    };
+    agreement.rate = rate(agreement.agreed, agreement.checked);
     let target_class = classes
         .iter()
         .find(|c| c.class.lanes == 4 && c.class.svs == 10 && c.class.is_highway())
