@@ -17,7 +17,7 @@ follows the first step of its plan); a real vehicle sends what it perceives.
 Output (stdout, one JSON object per line):
 
 * a decision: ``{"step", "vehicle_id", "sequence", "layer", "action", "next_maneuver",
-  "plan", "memory", "solve_us", "queue_us"}``;
+  "setpoint", "plan", "memory", "solve_us", "queue_us"}``;
 * a rejection: ``{"step", "vehicle_id", "sequence", "rejected": {"reason", "field"}}``;
 * with ``--stats``, last: ``{"stats": {...}}``, the planner's statistics document.
 
@@ -38,7 +38,7 @@ import zenoh
 
 PLAN_KEY = "hmdp/planner/plan"  # queryable of `planner serve` (protocol::names)
 STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 # The JSON form is chosen by the query's encoding; anything else is read as bincode.
 JSON_ENCODING = "application/json"
 
@@ -64,7 +64,20 @@ EXAMPLE_REQUEST = {
         "desired_speed_mps": 28.0,
         "maneuver": {"lane": 2, "beta": 0},
     },
-    "svs": [{"id": 1, "x_m": 110.0, "y_m": 3.5, "v_mps": 22.0, "a_mps2": 0.0}],
+    # Positions are vehicle centres; vy_mps is the lateral speed (positive to the left);
+    # length_m / width_m 0 mean unknown (the planner assumes its default size).
+    "svs": [
+        {
+            "id": 1,
+            "x_m": 110.0,
+            "y_m": 3.5,
+            "v_mps": 22.0,
+            "a_mps2": 0.0,
+            "vy_mps": 0.0,
+            "length_m": 4.5,
+            "width_m": 1.8,
+        }
+    ],
     # First request: an empty memory (it may also be left out).
     "memory": {"corrective": [], "previous_plan": []},
 }
@@ -138,6 +151,7 @@ def summary(step, response):
         "layer": decided["layer"],  # nominal, global_relaxation, fallback or watchdog_fallback
         "action": decided["action"],  # first action of the plan
         "next_maneuver": decided["next_maneuver"],  # the maneuver to command now
+        "setpoint": decided["setpoint"],  # accel_mps2 to command now, target_speed_mps at the step's end
         "plan": decided["plan"],
         "memory": decided["memory"],  # to send back, unchanged, with the next request
         "solve_us": response["solve_us"],

@@ -176,45 +176,6 @@ pub fn decode_json<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
     serde_json::from_value(value).map_err(|e| WireError::from_message(e.to_string()))
 }
 
-/// The list of an undecodable request that holds more than its capacity, when it can be told
-/// (`svs`, `memory.corrective` or `memory.previous_plan`): the `field` of a
-/// `capacity_exceeded` rejection. `json` says which encoding `bytes` are in.
-pub fn request_over_capacity_field(bytes: &[u8], json: bool) -> Option<&'static str> {
-    use crate::messages::{MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS};
-    let lists = [
-        ("svs", MAX_SVS),
-        ("memory.corrective", MAX_CORRECTIVE),
-        ("memory.previous_plan", MAX_HORIZON),
-    ];
-    if json {
-        if bytes.len() > MAX_MESSAGE_BYTES {
-            return None;
-        }
-        let value: serde_json::Value = serde_json::from_slice(bytes).ok()?;
-        return lists.into_iter().find_map(|(name, cap)| {
-            let pointer = format!("/{}", name.replace('.', "/"));
-            let len = value
-                .pointer(&pointer)
-                .and_then(serde_json::Value::as_array)
-                .map_or(0, Vec::len);
-            (len > cap).then_some(name)
-        });
-    }
-    // The bincode layout (docs/protocol.md): fixed-size fields up to the SV list's u64 count
-    // at byte 81; SVs are 36 bytes, corrective entries 20, actions 2.
-    const SVS_COUNT_AT: usize = 81;
-    let element_bytes = [36usize, 20, 2];
-    let mut at = SVS_COUNT_AT;
-    for ((name, cap), size) in lists.into_iter().zip(element_bytes) {
-        let count = u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?);
-        if count > cap as u64 {
-            return Some(name);
-        }
-        at += 8 + count as usize * size;
-    }
-    None
-}
-
 /// Decodes one JSON message from a string.
 pub fn decode_json_str<T: WireMessage>(text: &str) -> Result<T, WireError> {
     decode_json(text.as_bytes())

@@ -3,7 +3,7 @@
 use crate::enums::{Layer, RejectReason};
 use crate::messages::{
     bounded, Action, CorrectiveEntry, Decided, EgoState, Maneuver, PlanRequest, PlanResponse, PlanStep, PlannerMemory,
-    Rejected, Road, SvObservation, PROTOCOL_VERSION,
+    Rejected, Road, SetPoint, SvObservation, PROTOCOL_VERSION,
 };
 use crate::WireError;
 
@@ -36,14 +36,25 @@ impl From<decision::SvObservation> for SvObservation {
             y_m: v.y_m,
             v_mps: v.v_mps,
             a_mps2: v.a_mps2,
+            vy_mps: v.vy_mps,
+            length_m: v.length_m.unwrap_or(0.0),
+            width_m: v.width_m.unwrap_or(0.0),
         }
     }
 }
 impl From<SvObservation> for decision::SvObservation {
+    /// A size of 0 means unknown.
     fn from(v: SvObservation) -> Self {
-        decision::SvObservation::new(v.id, v.x_m, v.y_m, v.v_mps, v.a_mps2)
+        let known = |m: f64| (m != 0.0).then_some(m);
+        decision::SvObservation {
+            vy_mps: v.vy_mps,
+            length_m: known(v.length_m),
+            width_m: known(v.width_m),
+            ..decision::SvObservation::new(v.id, v.x_m, v.y_m, v.v_mps, v.a_mps2)
+        }
     }
 }
+same_fields!(SetPoint <=> decision::SetPoint { accel_mps2, target_speed_mps });
 same_fields!(CorrectiveEntry <=> decision::CorrectiveEntry { sv_id, release_m, trigger_m });
 same_fields!(PlanStep <=> decision::PlanStep { action via into, maneuver via into, x_m, v_mps, occupied_lanes });
 
@@ -129,6 +140,7 @@ impl TryFrom<&decision::Decision> for Decided {
         Ok(Decided::new(
             d.action.into(),
             d.next_maneuver.into(),
+            d.setpoint.into(),
             converted("plan", &d.plan)?,
             d.layer.into(),
             PlannerMemory::try_from(&d.memory)?,
@@ -189,4 +201,42 @@ impl From<&decision::InputError> for RejectReason {
         // Cannot fail: the conversion above only builds known reasons.
         Rejected::from(e).reason().unwrap_or(RejectReason::InternalError)
     }
+}
+
+/// The planner's answer to `request`, the one path from a request to its response that the
+/// service and an in-process channel share: wire checks, the decision, the conversion back.
+/// `queue_us` is 0 (the caller sets it when the request waited).
+pub fn answer(planner: &mut decision::Planner, request: &PlanRequest) -> PlanResponse {
+    if let Err(rejected) = request.validate() {
+        return PlanResponse::rejected(request.vehicle_id, request.sequence, rejected, 0);
+    }
+    match planner.decide(&request.to_situation()) {
+        Ok(decision) => PlanResponse::from_decision(request, &decision, 0).unwrap_or_else(|_| internal_error(request)),
+        Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(&e), 0),
+    }
+}
+
+/// The deterministic fallback for `request`, marked [`Layer::WatchdogFallback`]: what the
+/// service answers when a deadline runs out or the queue is full. `queue_us` is 0.
+pub fn fallback_answer(config: &decision::PlannerConfig, request: &PlanRequest) -> PlanResponse {
+    match decision::fallback_only(config, &request.to_situation()) {
+        Ok(decision) => match Decided::try_from(&decision) {
+            Ok(mut decided) => {
+                decided.set_layer(Layer::WatchdogFallback);
+                PlanResponse::decided(request.vehicle_id, request.sequence, decided, 0, 0)
+            }
+            Err(_) => internal_error(request),
+        },
+        Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(&e), 0),
+    }
+}
+
+/// A decision that does not fit the message (cannot happen with a valid configuration).
+fn internal_error(request: &PlanRequest) -> PlanResponse {
+    PlanResponse::rejected(
+        request.vehicle_id,
+        request.sequence,
+        Rejected::new(RejectReason::InternalError, "solver"),
+        0,
+    )
 }

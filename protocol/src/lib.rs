@@ -19,20 +19,25 @@ mod codec;
 #[cfg(feature = "decision")]
 mod convert;
 mod enums;
+mod format;
 mod messages;
 pub mod names;
 mod serde_util;
 mod validate;
 
 pub use codec::{
-    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty,
-    request_over_capacity_field, WireError, WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
+    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty, WireError,
+    WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
 };
+#[cfg(feature = "decision")]
+pub use convert::{answer, fallback_answer};
 pub use enums::{Layer, RejectReason};
+pub use format::{layout, WireFormat};
 pub use messages::{
     bounded, Action, ActionList, CorrectiveEntry, CorrectiveList, Decided, EgoState, FieldName, Maneuver, Outcome,
-    OutcomeRef, PlanRequest, PlanResponse, PlanStep, PlanStepList, PlannerMemory, Rejected, Road, SvList,
-    SvObservation, DEFAULT_DEADLINE, FIELD_NAME_CAPACITY, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS, PROTOCOL_VERSION,
+    OutcomeRef, PlanRequest, PlanResponse, PlanStep, PlanStepList, PlannerMemory, Rejected, Road, SetPoint, SvList,
+    SvObservation, DEFAULT_DEADLINE, FIELD_NAME_CAPACITY, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS, PROBE_VERSION,
+    PROTOCOL_VERSION,
 };
 pub use names::*;
 

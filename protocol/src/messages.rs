@@ -18,10 +18,13 @@ use crate::serde_util::{bounded_str, bounded_vec};
 use crate::WireError;
 
 /// Version of the wire contract. Carried first in every message and in the iceoryx2
-/// `type_name` of the payloads (`.../v1`).
-pub const PROTOCOL_VERSION: u16 = 1;
-/// At most this many SVs in a request.
-pub const MAX_SVS: usize = 16;
+/// `type_name` of the payloads (`.../v2`).
+pub const PROTOCOL_VERSION: u16 = 2;
+/// The version of a readiness probe ([`PlanRequest::probe`]); never a protocol version.
+pub const PROBE_VERSION: u16 = 0;
+/// At most this many SVs in a request (the decision core's `MAX_INPUT_SVS`; the planner uses
+/// the nearest `perception.max_svs` of them).
+pub const MAX_SVS: usize = 64;
 /// At most this many corrective (hysteresis) entries in the planner memory.
 pub const MAX_CORRECTIVE: usize = 16;
 /// At most this many steps in a plan (and actions in the previous plan).
@@ -44,7 +47,7 @@ pub type FieldName = StaticString<FIELD_NAME_CAPACITY>;
 
 /// The road as the planner sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Road/v1")]
+#[type_name("hmdp::Road/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Road {
@@ -58,7 +61,7 @@ pub struct Road {
 
 /// Discrete maneuver state: target lane and longitudinal state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Maneuver/v1")]
+#[type_name("hmdp::Maneuver/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Maneuver {
@@ -70,7 +73,7 @@ pub struct Maneuver {
 
 /// One action: lateral (`-1` = change to the left) and longitudinal change, each in `-1..=1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Action/v1")]
+#[type_name("hmdp::Action/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Action {
@@ -80,7 +83,7 @@ pub struct Action {
 
 /// The ego's state and current maneuver.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::EgoState/v1")]
+#[type_name("hmdp::EgoState/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct EgoState {
@@ -95,26 +98,49 @@ pub struct EgoState {
     pub maneuver: Maneuver,
 }
 
-/// One perceived surrounding vehicle.
+/// One perceived surrounding vehicle. Positions are of the vehicle's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::SvObservation/v1")]
+#[type_name("hmdp::SvObservation/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct SvObservation {
     pub id: u32,
-    /// m.
+    /// Longitudinal position of the centre, m.
     pub x_m: f64,
-    /// m.
+    /// Lateral position of the centre, m.
     pub y_m: f64,
-    /// m/s.
+    /// Speed, m/s.
     pub v_mps: f64,
-    /// m/s².
+    /// Acceleration, m/s².
     pub a_mps2: f64,
+    /// Lateral velocity, m/s (positive to the left). Optional in JSON (0).
+    #[serde(default)]
+    pub vy_mps: f64,
+    /// Length, m; 0 = unknown (the planner assumes its default). Optional in JSON.
+    #[serde(default)]
+    pub length_m: f64,
+    /// Width, m; 0 = unknown. Optional in JSON.
+    #[serde(default)]
+    pub width_m: f64,
+}
+
+impl SvObservation {
+    /// An SV with no lateral velocity and unknown size.
+    pub fn new(id: u32, x_m: f64, y_m: f64, v_mps: f64, a_mps2: f64) -> Self {
+        Self {
+            id,
+            x_m,
+            y_m,
+            v_mps,
+            a_mps2,
+            ..Self::default()
+        }
+    }
 }
 
 /// Hysteresis state of one SV in corrective mode.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::CorrectiveEntry/v1")]
+#[type_name("hmdp::CorrectiveEntry/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct CorrectiveEntry {
@@ -127,7 +153,7 @@ pub struct CorrectiveEntry {
 
 /// What the planner remembers between decisions; the vehicle sends back what it last got.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlannerMemory/v1")]
+#[type_name("hmdp::PlannerMemory/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlannerMemory {
@@ -141,7 +167,7 @@ pub struct PlannerMemory {
 
 /// A perception snapshot asking for a decision.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanRequest/v1")]
+#[type_name("hmdp::PlanRequest/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanRequest {
@@ -181,6 +207,21 @@ impl PlanRequest {
         }
     }
 
+    /// A readiness probe: version [`PROBE_VERSION`], answered with an `unsupported_version`
+    /// rejection that the planner does not count as one. Over Zenoh the empty query is the
+    /// probe.
+    pub fn probe(vehicle_id: u64) -> Self {
+        Self {
+            version: PROBE_VERSION,
+            ..Self::new(vehicle_id, 0, 0, Road::default(), EgoState::default())
+        }
+    }
+
+    /// Whether this is a readiness probe.
+    pub fn is_probe(&self) -> bool {
+        self.version == PROBE_VERSION
+    }
+
     /// The deadline the service should apply.
     pub fn deadline(&self) -> Duration {
         match self.deadline_us {
@@ -192,7 +233,7 @@ impl PlanRequest {
 
 /// One step of the planned sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanStep/v1")]
+#[type_name("hmdp::PlanStep/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanStep {
@@ -207,9 +248,22 @@ pub struct PlanStep {
     pub occupied_lanes: u16,
 }
 
+/// What to command now: the first step's longitudinal acceleration and the speed it reaches
+/// at the end of the first step.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
+#[type_name("hmdp::SetPoint/v2")]
+#[serde(deny_unknown_fields)]
+#[repr(C)]
+pub struct SetPoint {
+    /// m/s².
+    pub accel_mps2: f64,
+    /// m/s.
+    pub target_speed_mps: f64,
+}
+
 /// A decision.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Decided/v1")]
+#[type_name("hmdp::Decided/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Decided {
@@ -217,6 +271,8 @@ pub struct Decided {
     pub action: Action,
     /// Maneuver to command now.
     pub next_maneuver: Maneuver,
+    /// Longitudinal set-point of the first step.
+    pub setpoint: SetPoint,
     /// The planned sequence, at most [`MAX_HORIZON`] steps.
     #[serde(with = "bounded_vec")]
     pub plan: PlanStepList,
@@ -231,6 +287,7 @@ impl Decided {
     pub fn new(
         action: Action,
         next_maneuver: Maneuver,
+        setpoint: SetPoint,
         plan: PlanStepList,
         layer: Layer,
         memory: PlannerMemory,
@@ -238,6 +295,7 @@ impl Decided {
         Self {
             action,
             next_maneuver,
+            setpoint,
             plan,
             layer: layer.code(),
             memory,
@@ -261,7 +319,7 @@ impl Decided {
 
 /// A rejection: a typed reason and the offending field.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Rejected/v1")]
+#[type_name("hmdp::Rejected/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Rejected {
@@ -319,7 +377,7 @@ impl Rejected {
 /// is an externally tagged enum: `{"decided": {...}}` / `{"rejected": {...}}` in JSON, a
 /// `u32` variant index (0 decided, 1 rejected) followed by the body in bincode.
 #[derive(Debug, Clone, ZeroCopySend)]
-#[type_name("hmdp::Outcome/v1")]
+#[type_name("hmdp::Outcome/v2")]
 #[repr(C)]
 pub struct Outcome {
     kind: u8,
@@ -424,7 +482,7 @@ impl<'de> Deserialize<'de> for Outcome {
 
 /// The planner's answer to a [`PlanRequest`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanResponse/v1")]
+#[type_name("hmdp::PlanResponse/v2")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanResponse {

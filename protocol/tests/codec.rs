@@ -134,18 +134,18 @@ fn trailing_bytes_are_rejected() {
 #[test]
 fn wrong_version_is_reported_with_the_carried_version() {
     let mut req = example_request();
-    req.version = 2;
-    let expected = Err(WireError::UnsupportedVersion { found: 2, supported: 1 });
+    req.version = 1;
+    let expected = Err(WireError::UnsupportedVersion { found: 1, supported: 2 });
     assert_eq!(decode_bincode::<PlanRequest>(&encode_bincode(&req)), expected);
     assert_eq!(decode_json_str::<PlanRequest>(&encode_json(&req)), expected);
-    // Even when the rest is not a v1 body.
+    // Even when the rest is not a v2 body.
     assert_eq!(
         decode_bincode::<PlanRequest>(&[0x07, 0x00, 0xff]),
-        Err(WireError::UnsupportedVersion { found: 7, supported: 1 })
+        Err(WireError::UnsupportedVersion { found: 7, supported: 2 })
     );
     assert_eq!(
         decode_json_str::<PlanRequest>(r#"{"version": 3, "something": "else"}"#),
-        Err(WireError::UnsupportedVersion { found: 3, supported: 1 })
+        Err(WireError::UnsupportedVersion { found: 3, supported: 2 })
     );
     let rejected = req.validate().unwrap_err();
     assert_eq!(rejected.reason(), Ok(RejectReason::UnsupportedVersion));
@@ -155,7 +155,7 @@ fn wrong_version_is_reported_with_the_carried_version() {
     resp.version = 9;
     assert_eq!(
         decode_bincode::<PlanResponse>(&encode_bincode(&resp)),
-        Err(WireError::UnsupportedVersion { found: 9, supported: 1 })
+        Err(WireError::UnsupportedVersion { found: 9, supported: 2 })
     );
     assert!(matches!(
         resp.validate(),
@@ -173,23 +173,26 @@ fn json_with_svs(n: usize) -> String {
 #[test]
 fn capacity_overflow_is_rejected() {
     assert_eq!(
-        decode_json_str::<PlanRequest>(&json_with_svs(16)).unwrap().svs.len(),
-        16
+        decode_json_str::<PlanRequest>(&json_with_svs(MAX_SVS))
+            .unwrap()
+            .svs
+            .len(),
+        64
     );
     assert!(matches!(
-        decode_json_str::<PlanRequest>(&json_with_svs(17)),
+        decode_json_str::<PlanRequest>(&json_with_svs(MAX_SVS + 1)),
         Err(WireError::CapacityExceeded(_))
     ));
 
-    // bincode: a length prefix of 17 SVs followed by 17 SV bodies.
+    // bincode: a length prefix of 65 SVs followed by 65 SV bodies.
     let mut req = example_request();
     req.svs.clear();
     let base = encode_bincode(&req);
     let svs_at = 2 + 8 + 8 + 8 + 4 + 17 + 34;
     assert_eq!(&base[svs_at..svs_at + 8], &0u64.to_le_bytes());
     let mut bytes = base[..svs_at].to_vec();
-    bytes.extend_from_slice(&17u64.to_le_bytes());
-    bytes.extend(std::iter::repeat_n(0u8, 17 * 36));
+    bytes.extend_from_slice(&65u64.to_le_bytes());
+    bytes.extend(std::iter::repeat_n(0u8, 65 * 60));
     bytes.extend_from_slice(&base[svs_at + 8..]);
     assert!(matches!(
         decode_bincode::<PlanRequest>(&bytes),
@@ -256,7 +259,7 @@ fn unknown_enum_values_are_rejected() {
     // Layer code: last byte before the memory of a decided response.
     let resp = example_response();
     let bytes = encode_bincode(&resp);
-    let layer_at = header + 4 + 2 + 2 + 8 + 2 * 22;
+    let layer_at = header + 4 + 2 + 2 + 16 + 8 + 2 * 22;
     assert_eq!(bytes[layer_at], Layer::Nominal.code());
     let mut b = bytes.clone();
     b[layer_at] = 4;
@@ -360,7 +363,7 @@ fn json_is_natural() {
 fn type_names_carry_the_version() {
     let suffix = format!("/v{PROTOCOL_VERSION}");
     let names = unsafe { [PlanRequest::type_name(), PlanResponse::type_name()] };
-    assert_eq!(names, ["hmdp::PlanRequest/v1", "hmdp::PlanResponse/v1"]);
+    assert_eq!(names, ["hmdp::PlanRequest/v2", "hmdp::PlanResponse/v2"]);
     for name in names {
         assert!(name.ends_with(&suffix), "{name}");
     }

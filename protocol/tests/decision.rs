@@ -31,7 +31,7 @@ proptest! {
 #[test]
 fn situations_beyond_capacity_do_not_convert() {
     let mut situation = example_request().to_situation();
-    situation.svs = (0..17)
+    situation.svs = (0..=MAX_SVS as u32)
         .map(|id| decision::SvObservation::new(id, 10.0 * f64::from(id), 3.5, 20.0, 0.0))
         .collect();
     assert!(matches!(
@@ -139,6 +139,7 @@ fn a_decision_travels_and_its_memory_comes_back() {
     let plan: Vec<decision::PlanStep> = decided.plan.iter().map(|&s| s.into()).collect();
     assert_eq!(plan, decision.plan);
     assert_eq!(decision::PlannerMemory::from(&decided.memory), decision.memory);
+    assert_eq!(decision::SetPoint::from(decided.setpoint), decision.setpoint);
 
     // The next request carries the memory back.
     let mut next = req.clone();
@@ -161,4 +162,50 @@ fn layers_map_one_to_one() {
         assert_eq!(Layer::from(core), wire);
         assert_eq!(wire.name(), core.name());
     }
+}
+
+#[test]
+fn sv_size_zero_means_unknown() {
+    let mut wire = SvObservation::new(3, 10.0, 3.5, 20.0, 0.5);
+    wire.vy_mps = -0.4;
+    wire.width_m = 1.9;
+    let core = decision::SvObservation::from(wire);
+    assert_eq!((core.length_m, core.width_m, core.vy_mps), (None, Some(1.9), -0.4));
+    assert_eq!(SvObservation::from(core), wire);
+}
+
+#[test]
+fn answer_validates_decides_and_echoes() {
+    let mut planner = decision::Planner::new(PlannerConfig::default()).unwrap();
+    let req = example_request();
+    let response = answer(&mut planner, &req);
+    assert_eq!((response.vehicle_id, response.sequence), (7, 42));
+    let decided = response.outcome.as_decided().expect("a decision");
+    let direct = planner.decide(&req.to_situation()).unwrap();
+    assert_eq!(decision::Maneuver::from(decided.next_maneuver), direct.next_maneuver);
+    assert_eq!(decision::SetPoint::from(decided.setpoint), direct.setpoint);
+    // Wire checks first, then the planner's own.
+    let probe = answer(&mut planner, &PlanRequest::probe(9));
+    let rejected = probe.outcome.as_rejected().expect("a rejection");
+    assert_eq!(
+        (rejected.reason(), rejected.field()),
+        (Ok(RejectReason::UnsupportedVersion), "version")
+    );
+    let mut bad = req.clone();
+    bad.ego.v_mps = -3.0;
+    let rejected = answer(&mut planner, &bad)
+        .outcome
+        .as_rejected()
+        .cloned()
+        .expect("a rejection");
+    assert_eq!(
+        (rejected.reason(), rejected.field()),
+        (Ok(RejectReason::NegativeSpeed), "ego.v_mps")
+    );
+    // The watchdog's answer is the fallback, marked as the watchdog's, with a set-point.
+    let fallback = fallback_answer(&PlannerConfig::default(), &req);
+    let decided = fallback.outcome.as_decided().expect("a decision");
+    assert_eq!(decided.layer(), Ok(Layer::WatchdogFallback));
+    let core = decision::fallback_only(&PlannerConfig::default(), &req.to_situation()).unwrap();
+    assert_eq!(decision::SetPoint::from(decided.setpoint), core.setpoint);
 }

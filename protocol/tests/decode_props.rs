@@ -72,7 +72,7 @@ fn reference_request(bytes: &[u8]) -> Kind {
         r.take(8 + 8 + 8 + 4)?; // vehicle_id, sequence, timestamp_ns, deadline_us
         r.take(1 + 8 + 8)?; // road
         r.take(4 * 8 + 2)?; // ego
-        r.list(MAX_SVS as u64, 4 + 4 * 8)?;
+        r.list(MAX_SVS as u64, 4 + 7 * 8)?;
         r.list(MAX_CORRECTIVE as u64, 4 + 2 * 8)?;
         r.list(MAX_HORIZON as u64, 2)?;
         Ok(r.0.len())
@@ -132,11 +132,16 @@ fn full_request() -> PlanRequest {
     r.svs.clear();
     for i in 0..MAX_SVS as u32 {
         let sv = SvObservation {
-            id: i + 1,
-            x_m: -60.0 + 10.0 * f64::from(i),
-            y_m: 3.5 * f64::from(i % 3),
-            v_mps: 20.0 + f64::from(i),
-            a_mps2: 0.25,
+            vy_mps: -0.1,
+            length_m: 4.5,
+            width_m: 1.8,
+            ..SvObservation::new(
+                i + 1,
+                -60.0 + 10.0 * f64::from(i),
+                3.5 * f64::from(i % 3),
+                20.0 + f64::from(i),
+                0.25,
+            )
         };
         r.svs.push(sv).unwrap();
     }
@@ -162,7 +167,7 @@ fn full_request() -> PlanRequest {
 /// Offsets of the three list counts in a request with `svs` SVs and `corrective` entries.
 fn count_offsets(svs: usize, corrective: usize) -> [usize; 3] {
     let svs_at = 2 + 8 + 8 + 8 + 4 + 17 + 34;
-    let corrective_at = svs_at + 8 + 36 * svs;
+    let corrective_at = svs_at + 8 + 60 * svs;
     [svs_at, corrective_at, corrective_at + 8 + 20 * corrective]
 }
 
@@ -258,8 +263,8 @@ fn the_reference_agrees_on_valid_requests() {
         assert_eq!(reference_request(&bytes), Kind::Ok);
         assert_eq!(decode_bincode::<PlanRequest>(&bytes), Ok(req));
     }
-    assert_eq!(encode_bincode(&example_request()).len(), 143);
-    assert_eq!(encode_bincode(&full_request()).len(), 105 + 36 * 16 + 20 * 16 + 2 * 6);
+    assert_eq!(encode_bincode(&example_request()).len(), 167);
+    assert_eq!(encode_bincode(&full_request()).len(), 105 + 60 * 64 + 20 * 16 + 2 * 6);
 }
 
 #[test]
@@ -317,7 +322,7 @@ fn every_single_byte_corruption_of_a_valid_request_is_typed() {
 fn corruptions_reach_every_wire_rejection() {
     let bytes = encode_bincode(&example_request());
     let beta_at = 0x50;
-    let plan_at = 0x8d;
+    let plan_at = 0xa5;
     for (at, byte, expected) in [
         (beta_at, 0x02, Some((RejectReason::BetaOutOfRange, "ego.maneuver.beta"))),
         (beta_at, 0xff, None),
@@ -380,7 +385,7 @@ fn list_counts_beyond_capacity_are_refused_before_reading_elements() {
     let offsets = count_offsets(req.svs.len(), req.memory.corrective.len());
     let capacities = [MAX_SVS, MAX_CORRECTIVE, MAX_HORIZON];
     for (at, capacity) in offsets.into_iter().zip(capacities) {
-        for count in [capacity as u64 + 1, 1 << 32, u64::MAX / 36 + 1, u64::MAX] {
+        for count in [capacity as u64 + 1, 1 << 32, u64::MAX / 60 + 1, u64::MAX] {
             let mut b = bytes[..at].to_vec();
             b.extend_from_slice(&count.to_le_bytes());
             // Nothing follows the count: a decoder that tried to read (or allocate) the
@@ -451,7 +456,7 @@ fn json_edge_inputs_are_typed() {
         (b"{\"version\": 1", Kind::Truncated),
         (b"null", Kind::Malformed),
         (b"{}", Kind::Malformed),
-        (b"{\"version\": 1}", Kind::Malformed),
+        (b"{\"version\": 2}", Kind::Malformed),
         (b"\xff\xfe", Kind::Malformed),
         (b"{} {}", Kind::TrailingBytes(2)),
         (b"1e999", Kind::Malformed),
@@ -512,11 +517,14 @@ fn json_array_form_is_not_a_request() {
 fn over_capacity_list_is_named() {
     let full = full_request();
     let bytes = encode_bincode(&full);
-    assert_eq!(request_over_capacity_field(&bytes, false), None);
-    assert_eq!(request_over_capacity_field(encode_json(&full).as_bytes(), true), None);
+    assert_eq!(WireFormat::Bincode.over_capacity_field(&bytes), None);
+    assert_eq!(
+        WireFormat::Json.over_capacity_field(encode_json(&full).as_bytes()),
+        None
+    );
     // Offsets of the three counts: the SV list at byte 81, then each list's elements.
     let svs_at = 81;
-    let corrective_at = svs_at + 8 + MAX_SVS * 36;
+    let corrective_at = svs_at + 8 + MAX_SVS * 60;
     let plan_at = corrective_at + 8 + MAX_CORRECTIVE * 20;
     let lists = [
         ("svs", svs_at, MAX_SVS),
@@ -535,7 +543,7 @@ fn over_capacity_list_is_named() {
             decode_bincode::<PlanRequest>(&patched),
             Err(WireError::CapacityExceeded(_) | WireError::Truncated)
         ));
-        assert_eq!(request_over_capacity_field(&patched, false), Some(name));
+        assert_eq!(WireFormat::Bincode.over_capacity_field(&patched), Some(name));
         let mut json: serde_json::Value = serde_json::from_str(&encode_json(&full)).unwrap();
         let pointer = format!("/{}", name.replace('.', "/"));
         let list = json.pointer_mut(&pointer).and_then(|v| v.as_array_mut()).unwrap();
@@ -546,7 +554,7 @@ fn over_capacity_list_is_named() {
             decode_json::<PlanRequest>(text.as_bytes()),
             Err(WireError::CapacityExceeded(_))
         ));
-        assert_eq!(request_over_capacity_field(text.as_bytes(), true), Some(name));
+        assert_eq!(WireFormat::Json.over_capacity_field(text.as_bytes()), Some(name));
     }
 }
 

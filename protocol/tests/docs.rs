@@ -87,6 +87,18 @@ fn annotated_request(r: &PlanRequest) -> Vec<(String, Vec<u8>)> {
             format!("svs[{i}].a_mps2: f64 = {:?}", sv.a_mps2),
             &sv.a_mps2.to_le_bytes(),
         );
+        put(
+            format!("svs[{i}].vy_mps: f64 = {:?}", sv.vy_mps),
+            &sv.vy_mps.to_le_bytes(),
+        );
+        put(
+            format!("svs[{i}].length_m: f64 = {:?}", sv.length_m),
+            &sv.length_m.to_le_bytes(),
+        );
+        put(
+            format!("svs[{i}].width_m: f64 = {:?}", sv.width_m),
+            &sv.width_m.to_le_bytes(),
+        );
     }
     let c = &r.memory.corrective;
     put(
@@ -184,7 +196,7 @@ fn documented_layout_matches_the_encoder() {
 
 #[test]
 fn documented_rejection_bytes_match_the_encoder() {
-    let mut expected = vec![0x01, 0x00];
+    let mut expected = vec![0x02, 0x00];
     expected.extend_from_slice(&7u64.to_le_bytes());
     expected.extend_from_slice(&43u64.to_le_bytes());
     expected.extend_from_slice(&[0, 0, 0, 0, 5, 0, 0, 0, 1, 0, 0, 0, 0x0c]);

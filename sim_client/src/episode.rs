@@ -4,7 +4,8 @@
 //! Pure apart from the planner call: no I/O, no clock except the planner's own solve-time
 //! statistic, which is kept apart from everything that must be reproducible.
 
-use decision::{EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Situation};
+use decision::{EgoState, Maneuver, PlanStep, PlannerMemory, Situation};
+use protocol::Layer;
 use serde::{Deserialize, Serialize};
 use traffic::{EgoCommand, EgoMode, Perception, Scenario, SimParams, World};
 
@@ -278,20 +279,17 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
     if spec.record_trajectory {
         record_states(&world, &mut episode.trajectory);
     }
-    let mut memory = PlannerMemory::default();
+    let mut memory = protocol::PlannerMemory::default();
     while world.step_index() < total_steps {
         if world.step_index() % steps_per_decision == 0 {
             let perception = world.perceive();
             let index = episode.decisions.len() as u64;
             let record = match &mut driver {
                 Driver::Planner(link) => {
-                    let situation = situation_from(
-                        &perception,
-                        world.ego_command(),
-                        spec.max_svs,
-                        std::mem::take(&mut memory),
-                    );
-                    let decision = link.decide(&situation)?;
+                    let situation =
+                        situation_from(&perception, world.ego_command(), spec.max_svs, PlannerMemory::default());
+                    let request = crate::link::request_for(&situation, std::mem::take(&mut memory))?;
+                    let decision = link.decide(&request)?;
                     let m = decision.next_maneuver;
                     world.set_ego_command_with_accel(
                         EgoCommand {
@@ -308,14 +306,14 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
                         layer: Some(decision.layer),
                         target_lane: m.lane,
                         beta: m.beta,
-                        corrective_svs: decision.stats.corrective_svs,
+                        corrective_svs: decision.corrective_svs,
                         corrective_sv_ids,
                         svs_sent: situation.svs.len(),
                         ego_x_m: perception.ego.x,
                         ego_y_m: perception.ego.y,
                         ego_speed_mps: perception.ego.v,
                         plan: decision.plan,
-                        solve_us: decision.stats.total_us,
+                        solve_us: decision.solve_us,
                         situation: spec.record_trajectory.then_some(situation),
                     }
                 }

@@ -11,17 +11,22 @@
 pub mod campaign;
 pub mod campaign_report;
 pub mod cases;
+pub mod connect;
 pub mod episode;
 pub mod error;
 pub mod link;
 pub mod load;
 pub mod metrics;
 pub mod paper;
+pub mod planner_process;
 pub mod plot;
 pub mod prediction;
 pub mod presets;
 pub mod report;
 pub mod safety;
 
+pub use connect::Transport;
 pub use error::{Result, SimClientError};
-pub use link::{InProcess, LinkError, LinkOptions, PlanChannel, PlannerLink, RemoteLink, Transport, ZenohTarget};
+pub use link::{InProcess, LinkError, LinkOptions, Planned, PlannerLink, RemoteLink};
+pub use transport::zenoh::ZenohTarget;
+pub use transport::PlanChannel;

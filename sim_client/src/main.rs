@@ -1,16 +1,18 @@
 //! `sim_client`: runs the paper's experiments against the planner.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use clap::{Args, Parser, Subcommand};
-use decision::PlannerConfig;
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_client::campaign::{self, CampaignSettings};
-use sim_client::load::{self, LiveCounters, LoadReport, LoadSettings, ProcessMonitor};
+use sim_client::connect::BUSY_POLL_WINDOW;
+use sim_client::load::{self, parse_run_length, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines};
+use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPlanner};
 use sim_client::{cases, report, Transport, ZenohTarget};
+use transport::iceoryx2::WaitMode;
 
 #[derive(Parser)]
 #[command(
@@ -23,6 +25,17 @@ struct Cli {
     command: Command,
 }
 
+/// The transport named on the command line (its target comes from the other flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum TransportKind {
+    /// The planner in the same thread.
+    Inproc,
+    /// A `planner serve --iceoryx2` process on this machine.
+    Iceoryx2,
+    /// A `planner serve` process reached with `--zenoh-connect` or `--zenoh-config`.
+    Zenoh,
+}
+
 #[derive(Args)]
 struct Common {
     /// Output directory.
@@ -33,11 +46,9 @@ struct Common {
     /// `--spawn-planner`.
     #[arg(long, value_name = "FILE")]
     planner_config: Option<PathBuf>,
-    /// How the planner is reached: `inproc` (same thread), `iceoryx2` (a `planner serve
-    /// --iceoryx2` process on this machine) or `zenoh` (a `planner serve` process reached
-    /// with `--zenoh-connect` or `--zenoh-config`).
-    #[arg(long, default_value = "inproc", value_parser = parse_transport)]
-    transport: Transport,
+    /// How the planner is reached.
+    #[arg(long, value_enum, default_value = "inproc")]
+    transport: TransportKind,
     /// Zenoh endpoint of the planner service, e.g. tcp/127.0.0.1:7447 (with `--transport zenoh`).
     #[arg(long, value_name = "ENDPOINT")]
     zenoh_connect: Option<String>,
@@ -47,148 +58,92 @@ struct Common {
     /// iceoryx2 shared-memory prefix of the planner (with `--transport iceoryx2`).
     #[arg(long, value_name = "PREFIX")]
     iceoryx2_prefix: Option<String>,
+    /// Latency mode (with `--transport iceoryx2`): the vehicles spin for their answers instead
+    /// of sleeping on the response event; a planner started with `--spawn-planner` spins too.
+    #[arg(long)]
+    busy_poll: bool,
     /// Start `planner serve` (found next to this executable) for the run and stop it at exit
     /// (with `--transport zenoh` on a free loopback port, or `--transport iceoryx2` under a
     /// prefix of its own).
     #[arg(long)]
     spawn_planner: bool,
+    /// Where a planner started with `--spawn-planner` writes its log (default: this stderr).
+    #[arg(long, value_name = "FILE", requires = "spawn_planner")]
+    planner_log: Option<PathBuf>,
 }
 
-/// A `planner serve` child process, stopped when dropped (also on error or panic).
-struct PlannerChild(std::process::Child, Option<String>);
-
-impl PlannerChild {
-    /// Removes what iceoryx2 keeps under a prefix of our own after its last node is gone (a
-    /// small management segment per prefix).
-    fn remove_prefix_files(&self) {
-        let Some(prefix) = &self.1 else { return };
-        if let Ok(entries) = std::fs::read_dir("/dev/shm") {
-            for entry in entries.flatten() {
-                if entry.file_name().to_string_lossy().starts_with(prefix.as_str()) {
-                    let _ = std::fs::remove_file(entry.path());
-                }
-            }
-        }
+impl Common {
+    fn planner_config(&self) -> Result<decision::PlannerConfig> {
+        Ok(supervise::planner_config(self.planner_config.as_deref())?)
     }
-}
 
-impl Drop for PlannerChild {
-    fn drop(&mut self) {
-        // SIGTERM first, so that it removes its shared memory; SIGKILL if it does not stop.
-        #[cfg(unix)]
-        if let Ok(pid) = i32::try_from(self.0.id()) {
-            // SAFETY: signals our own child, which has not been reaped yet.
-            unsafe { libc::kill(pid, libc::SIGTERM) };
-            let until = Instant::now() + std::time::Duration::from_secs(5);
-            while Instant::now() < until {
-                if let Ok(Some(_)) = self.0.try_wait() {
-                    self.remove_prefix_files();
-                    return;
-                }
-                std::thread::sleep(std::time::Duration::from_millis(20));
-            }
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn spawn_planner_with(common: &Common, transport_args: &[String], workers: Option<usize>) -> Result<PlannerChild> {
-    let exe = std::env::current_exe().context("locating sim_client's executable")?;
-    let planner = exe.with_file_name(format!("planner{}", std::env::consts::EXE_SUFFIX));
-    let mut cmd = std::process::Command::new(&planner);
-    cmd.arg("serve").args(transport_args);
-    if let Some(w) = workers {
-        cmd.arg("--workers").arg(w.to_string());
-    }
-    if let Some(p) = &common.planner_config {
-        cmd.arg("--config").arg(p);
-    }
-    // If this process dies without stopping it (a signal, SIGPIPE), the planner must not live
-    // on: the kernel sends it SIGTERM when its parent goes.
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::process::CommandExt;
-        // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
-        unsafe {
-            cmd.pre_exec(|| {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
-                Ok(())
-            });
-        }
-    }
-    let child = cmd
-        .stdin(std::process::Stdio::null())
-        .spawn()
-        .with_context(|| format!("starting {}", planner.display()))?;
-    Ok(PlannerChild(child, None))
-}
-
-/// Completes the transport from the command line, starting the planner if asked to.
-fn prepare_transport(common: &mut Common) -> Result<Option<PlannerChild>> {
-    prepare_transport_with(common, None)
-}
-
-/// [`prepare_transport`], giving a spawned planner `workers` worker threads.
-fn prepare_transport_with(common: &mut Common, workers: Option<usize>) -> Result<Option<PlannerChild>> {
-    let zenoh_flags = common.zenoh_connect.is_some() || common.zenoh_config.is_some();
-    match common.transport.clone() {
-        Transport::InProcess => {
-            if zenoh_flags || common.iceoryx2_prefix.is_some() || common.spawn_planner {
-                anyhow::bail!("--zenoh-*, --iceoryx2-prefix and --spawn-planner need --transport zenoh or iceoryx2");
-            }
-            Ok(None)
-        }
-        Transport::Zenoh(_) => {
-            if common.iceoryx2_prefix.is_some() {
-                anyhow::bail!("--iceoryx2-prefix needs --transport iceoryx2");
-            }
-            let mut target = ZenohTarget {
-                endpoint: common.zenoh_connect.clone(),
-                config_file: common.zenoh_config.clone(),
+    /// Checks that the flags fit the transport, starts the planner if asked to, and builds the
+    /// transport. `workers` goes to a started planner.
+    fn open(&self, workers: Option<usize>) -> Result<(Transport, Option<SpawnedPlanner>)> {
+        let zenoh_flags = self.zenoh_connect.is_some() || self.zenoh_config.is_some();
+        let spawn = |serve: Serve| {
+            let options = SpawnOptions {
+                workers,
+                config: self.planner_config.clone(),
+                log: self.planner_log.clone(),
             };
-            let child = match (zenoh_flags, common.spawn_planner) {
-                (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),
-                (false, false) => {
+            spawn_planner(&serve, &options)
+        };
+        match self.transport {
+            TransportKind::Inproc => {
+                if zenoh_flags || self.iceoryx2_prefix.is_some() || self.spawn_planner || self.busy_poll {
                     anyhow::bail!(
-                        "--transport zenoh needs --zenoh-connect ENDPOINT, --zenoh-config FILE or --spawn-planner"
-                    )
+                        "--zenoh-*, --iceoryx2-prefix, --busy-poll and --spawn-planner need --transport zenoh or iceoryx2"
+                    );
                 }
-                (true, false) => None,
-                (false, true) => {
-                    let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
-                    let endpoint = format!("tcp/127.0.0.1:{port}");
-                    let child = spawn_planner_with(common, &["--zenoh-listen".into(), endpoint.clone()], workers)?;
-                    target.endpoint = Some(endpoint);
-                    Some(child)
-                }
-            };
-            common.transport = Transport::Zenoh(target);
-            Ok(child)
-        }
-        Transport::Iceoryx2 { .. } => {
-            if zenoh_flags {
-                anyhow::bail!("--zenoh-connect / --zenoh-config need --transport zenoh");
+                Ok((Transport::InProcess, None))
             }
-            let mut prefix = common.iceoryx2_prefix.clone();
-            let child = if common.spawn_planner {
-                // A prefix of its own, so that it cannot meet another planner on this machine.
-                let p = prefix.get_or_insert_with(|| format!("hmdp{}_", std::process::id()));
-                let mut child = spawn_planner_with(
-                    common,
-                    &["--iceoryx2".into(), "--iceoryx2-prefix".into(), p.clone()],
-                    workers,
-                )?;
-                // Only a prefix this run made up is ours to clean.
-                if common.iceoryx2_prefix.is_none() {
-                    child.1 = Some(p.clone());
+            TransportKind::Zenoh => {
+                if self.iceoryx2_prefix.is_some() || self.busy_poll {
+                    anyhow::bail!("--iceoryx2-prefix and --busy-poll need --transport iceoryx2");
                 }
-                Some(child)
-            } else {
-                None
-            };
-            common.transport = Transport::Iceoryx2 { prefix };
-            Ok(child)
+                let mut target = ZenohTarget {
+                    endpoint: self.zenoh_connect.clone(),
+                    config_file: self.zenoh_config.clone(),
+                };
+                let planner = match (zenoh_flags, self.spawn_planner) {
+                    (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),
+                    (false, false) => anyhow::bail!(
+                        "--transport zenoh needs --zenoh-connect ENDPOINT, --zenoh-config FILE or --spawn-planner"
+                    ),
+                    (true, false) => None,
+                    (false, true) => {
+                        let planner = spawn(Serve::Zenoh)?;
+                        target.endpoint = planner.zenoh_endpoint.clone();
+                        Some(planner)
+                    }
+                };
+                Ok((Transport::Zenoh(target), planner))
+            }
+            TransportKind::Iceoryx2 => {
+                if zenoh_flags {
+                    anyhow::bail!("--zenoh-connect / --zenoh-config need --transport zenoh");
+                }
+                let mut prefix = self.iceoryx2_prefix.clone();
+                let planner = if self.spawn_planner {
+                    let planner = spawn(Serve::Iceoryx2 {
+                        prefix: prefix.clone(),
+                        busy_poll: self.busy_poll,
+                    })?;
+                    prefix = planner.iceoryx2_prefix.clone();
+                    Some(planner)
+                } else {
+                    None
+                };
+                let wait = if self.busy_poll {
+                    WaitMode::BusyPoll {
+                        window: BUSY_POLL_WINDOW,
+                    }
+                } else {
+                    WaitMode::Event
+                };
+                Ok((Transport::Iceoryx2 { prefix, wait }, planner))
+            }
         }
     }
 }
@@ -204,13 +159,13 @@ struct LoadArgs {
     /// Requests per second per vehicle.
     #[arg(long, default_value_t = 2.5)]
     rate: f64,
-    /// Run length, e.g. `60s`, `10m`, `1h`.
-    #[arg(long, value_parser = humantime::parse_duration)]
-    duration: Option<std::time::Duration>,
+    /// Run length, e.g. `60s`, `10m`, `1h`; a plain number is seconds.
+    #[arg(long, value_parser = parse_run_length)]
+    duration: Option<Duration>,
     /// RSS growth is measured against the first sample after this (default: a quarter of the
     /// run, at most 10 s for `load`, 60 s for `soak`).
-    #[arg(long, value_parser = humantime::parse_duration)]
-    warmup: Option<std::time::Duration>,
+    #[arg(long, value_parser = parse_run_length)]
+    warmup: Option<Duration>,
     /// The vehicles' deadline, ms.
     #[arg(long, default_value_t = 400)]
     deadline_ms: u64,
@@ -234,8 +189,8 @@ struct LoadArgs {
     #[arg(long)]
     plot: bool,
     /// Print a progress line this often.
-    #[arg(long, value_parser = humantime::parse_duration, default_value = "10s")]
-    report_every: std::time::Duration,
+    #[arg(long, value_parser = parse_run_length, default_value = "10s")]
+    report_every: Duration,
 }
 
 #[derive(Subcommand)]
@@ -262,8 +217,8 @@ enum Command {
         clients: usize,
         #[arg(long)]
         rate: f64,
-        #[arg(long, value_parser = humantime::parse_duration)]
-        duration: std::time::Duration,
+        #[arg(long, value_parser = parse_run_length)]
+        duration: Duration,
         #[arg(long)]
         deadline_ms: u64,
         #[arg(long)]
@@ -328,83 +283,37 @@ struct PaperArgs {
 }
 
 impl PaperArgs {
-    fn config(&self) -> Result<PlannerConfig> {
+    fn config(&self) -> Result<decision::PlannerConfig> {
         Ok(sim_client::presets::paper_literal(self.paper_config.as_deref())?)
     }
 }
 
-/// The command-line flags that reach `transport` (for `load --processes` children).
-fn transport_flags(transport: &Transport) -> Vec<String> {
-    let mut flags = vec!["--transport".to_string(), transport.to_string()];
-    match transport {
-        Transport::InProcess => {}
-        Transport::Iceoryx2 { prefix } => {
-            if let Some(p) = prefix {
-                flags.extend(["--iceoryx2-prefix".into(), p.clone()]);
-            }
-        }
-        Transport::Zenoh(target) => {
-            if let Some(e) = &target.endpoint {
-                flags.extend(["--zenoh-connect".into(), e.clone()]);
-            }
-            if let Some(f) = &target.config_file {
-                flags.extend(["--zenoh-config".into(), f.display().to_string()]);
-            }
-        }
-    }
-    flags
-}
-
 /// Runs `load` / `soak`: the report, printed and written.
-fn run_load_command(mut args: LoadArgs, default_duration: std::time::Duration, soak: bool) -> Result<LoadReport> {
-    let planner = prepare_transport_with(&mut args.common, args.planner_workers)?;
-    let config = planner_config(args.common.planner_config.as_deref())?;
+fn run_load_command(args: LoadArgs, default_duration: Duration, soak: bool) -> Result<LoadReport> {
+    let (transport, planner) = args.common.open(args.planner_workers)?;
     let duration = args.duration.unwrap_or(default_duration);
-    let warmup_cap = std::time::Duration::from_secs(if soak { 60 } else { 10 });
-    let mut settings = LoadSettings::new(args.common.transport.clone(), args.clients, args.rate, duration);
+    let warmup_cap = Duration::from_secs(if soak { 60 } else { 10 });
+    let mut settings = LoadSettings::new(transport, args.clients, args.rate, duration);
     settings.warmup = args.warmup.unwrap_or((duration / 4).min(warmup_cap));
-    settings.deadline = std::time::Duration::from_millis(args.deadline_ms);
+    settings.deadline = Duration::from_millis(args.deadline_ms);
     settings.seed = args.seed;
-    settings.planner = config;
-    settings.planner_pid = args.planner_pid.or(planner.as_ref().map(|p| p.0.id()));
+    settings.planner = args.common.planner_config()?;
+    settings.planner_pid = args.planner_pid.or(planner.as_ref().map(|p| p.process.id()));
     let live = std::sync::Arc::new(LiveCounters::default());
     settings.live = Some(std::sync::Arc::clone(&live));
     let monitor = settings
         .planner_pid
         .map(|pid| ProcessMonitor::start(pid, settings.sample_period));
-    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let reporter = {
-        let (done, live, every) = (
-            std::sync::Arc::clone(&done),
-            std::sync::Arc::clone(&live),
-            args.report_every,
-        );
-        let started = Instant::now();
-        std::thread::spawn(move || {
-            let mut next = started + every;
-            while !done.load(std::sync::atomic::Ordering::Relaxed) {
-                std::thread::sleep(std::time::Duration::from_millis(100));
-                if Instant::now() >= next {
-                    next += every;
-                    let [sent, in_time, late, lost, dup] = live.get();
-                    eprintln!(
-                        "[{:>7.1} s] sent {sent}, decided in time {in_time}, late {late}, lost {lost}, duplicated {dup}",
-                        started.elapsed().as_secs_f64()
-                    );
-                }
-            }
-        })
-    };
+    let progress = ProgressLines::start(live, args.report_every);
     let parts = if args.processes == 0 {
         vec![load::run_part(&settings, Instant::now())?]
     } else {
-        run_worker_processes(&args, &settings)?
+        load::run_worker_processes(&settings, args.processes, args.common.planner_config.as_deref())?
     };
-    done.store(true, std::sync::atomic::Ordering::Relaxed);
-    let _ = reporter.join();
+    drop(progress);
     let report = LoadReport::merge(&settings, &parts, monitor.map(|m| m.finish(settings.warmup)));
     drop(planner);
-    print_load_report(&report);
+    print!("{}", report.summary());
     if let Some(path) = &args.json {
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
@@ -424,100 +333,126 @@ fn run_load_command(mut args: LoadArgs, default_duration: std::time::Duration, s
     Ok(report)
 }
 
-/// `load --processes N`: N `load-worker` children share the vehicles; their parts are merged.
-fn run_worker_processes(args: &LoadArgs, settings: &LoadSettings) -> Result<Vec<load::LoadPart>> {
-    let exe = std::env::current_exe().context("locating sim_client's executable")?;
-    let dir = std::env::temp_dir().join(format!("hmdp-load-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let n = args.processes.min(args.clients).max(1);
-    let mut children = Vec::new();
-    let mut base = settings.vehicle_id_base;
-    for i in 0..n {
-        let clients = args.clients / n + usize::from(i < args.clients % n);
-        let out = dir.join(format!("part-{i}.json"));
-        let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("load-worker")
-            .args(transport_flags(&settings.transport))
-            .args([
-                "--clients",
-                &clients.to_string(),
-                "--rate",
-                &settings.rate_hz.to_string(),
-            ])
-            .args(["--duration", &format!("{}ms", settings.duration.as_millis())])
-            .args(["--deadline-ms", &settings.deadline.as_millis().to_string()])
-            .args([
-                "--seed",
-                &settings.seed.to_string(),
-                "--vehicle-id-base",
-                &base.to_string(),
-            ])
-            .arg("--part-out")
-            .arg(&out);
-        if let Some(p) = &args.common.planner_config {
-            cmd.arg("--planner-config").arg(p);
-        }
-        children.push((cmd.spawn().context("starting a load worker")?, out));
-        base += clients as u64;
+fn run_campaign(
+    common: &Common,
+    scale: f64,
+    config: Option<PathBuf>,
+    seed: u64,
+    threads: Option<usize>,
+    baselines: bool,
+    paper: &PaperArgs,
+) -> Result<()> {
+    if common.transport != TransportKind::Inproc && baselines {
+        // A planner process has one configuration; the no-hysteresis baseline needs another.
+        anyhow::bail!("with a remote transport, run the campaign with --baselines false");
     }
-    let mut parts = Vec::new();
-    for (mut child, out) in children {
-        let status = child.wait()?;
-        anyhow::ensure!(status.success(), "a load worker failed ({status})");
-        let text = std::fs::read_to_string(&out).with_context(|| format!("reading {}", out.display()))?;
-        parts.push(serde_json::from_str(&text)?);
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok(parts)
-}
-
-fn print_load_report(r: &LoadReport) {
-    let c = &r.counts;
-    println!(
-        "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}; {:.1} decisions/s in time",
-        r.transport, r.clients, r.rate_hz, r.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, r.throughput_per_s
+    let (transport, _planner) = common.open(None)?;
+    let entries = match &config {
+        Some(p) => campaign::load_entries(p)?,
+        None => campaign::paper_entries(),
+    };
+    let entries = campaign::scale_trials(&entries, scale)?;
+    let threads = threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let mut settings = CampaignSettings::new(entries, seed, threads);
+    settings.baselines = baselines;
+    settings.planner = common.planner_config()?;
+    settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
+    settings.transport = transport;
+    let bar = if std::io::stderr().is_terminal() {
+        ProgressBar::new(settings.episode_count() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} episodes, eta {eta}")
+            .expect("valid template"),
     );
-    let l = &r.by_layer;
-    println!(
-        "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, rejected {}",
-        l.nominal, l.global_relaxation, l.fallback, l.watchdog_fallback, l.rejected
-    );
-    println!(
-        "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "us", "p50", "p90", "p99", "p99.9", "max"
-    );
-    for (name, p) in [
-        ("round trip", &r.round_trip),
-        ("queueing", &r.queue),
-        ("solve", &r.solve),
-        ("transport share", &r.transport_overhead),
-    ] {
+    let results = campaign::run_campaign(&settings, &|| bar.inc(1))?;
+    bar.finish_and_clear();
+    let files = report::write_campaign(&common.out, &results)?;
+    for g in &results.overall {
+        let share = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v));
         println!(
-            "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}",
-            name, p.p50_us, p.p90_us, p.p99_us, p.p999_us, p.max_us
+            "{:<22} trials {:>5}  decisions {:>7}  collision rate {:.2}%  NOR {}  GSRR {}  FBR {}  solve mean {:.3} ms p99 {:.3} ms max {:.3} ms",
+            g.driver.name(),
+            g.trials,
+            g.decisions,
+            100.0 * g.collision_rate,
+            share(g.nor),
+            share(g.gsrr),
+            share(g.fbr),
+            g.solve_time.mean_ms,
+            g.solve_time.p99_ms,
+            g.solve_time.max_ms,
+        );
+        let s = &g.safety;
+        println!(
+            "{:<22} collisions at fault {} / hit in lane {} / SV-SV {}  hard brakes {:.1}/h  min TTC p5 {} p50 {} s  TTC<3s {:.2}%  headway<1s {:.2}%  max DRAC {:.2} m/s^2",
+            "",
+            g.collision_split.ego_at_fault,
+            g.collision_split.ego_hit_in_lane,
+            g.collision_split.sv_sv,
+            s.hard_braking_per_hour,
+            s.min_ttc_p5_s.map_or("inf".into(), |v| format!("{v:.2}")),
+            s.min_ttc_p50_s.map_or("inf".into(), |v| format!("{v:.2}")),
+            100.0 * s.ttc_below_3s_share,
+            100.0 * s.headway_below_1s_share,
+            s.max_drac_mps2,
         );
     }
-    if let Some(p) = &r.planner {
+    println!(
+        "campaign wall time {:.1} s on {} thread(s)",
+        results.wall_time_s, results.threads
+    );
+    print_files(&files);
+    Ok(())
+}
+
+fn run_case1(common: &Common, seed: u64, paper: &PaperArgs) -> Result<()> {
+    let (transport, _planner) = common.open(None)?;
+    let config = common.planner_config()?;
+    let case = cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?;
+    let files = report::write_case1(&common.out, &case)?;
+    println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
+    if let Some(p) = &case.paper_literal {
+        println!("case1 paper_literal: {}", report::episode_summary_line(&p.metrics));
+    }
+    print_files(&files);
+    Ok(())
+}
+
+fn run_case2(common: &Common, seed: u64, paper: &PaperArgs) -> Result<()> {
+    if common.transport != TransportKind::Inproc {
+        // A planner process has one configuration; the ablation needs two.
+        anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
+    }
+    // Refuses the remote-transport flags, which mean nothing in process.
+    let (transport, _none) = common.open(None)?;
+    let case = cases::run_case2(&common.planner_config()?, Some(&paper.config()?), &transport, seed)?;
+    let files = report::write_case2(&common.out, &case)?;
+    let s = case.summary();
+    let runs = std::iter::once(("case2", &s.planner)).chain(s.paper_literal.iter().map(|a| ("case2 paper_literal", a)));
+    for (name, a) in runs {
         println!(
-            "  planner pid {}: CPU mean {:.1} % of a core, RSS after warm-up {} KiB, max {} KiB (growth {:.2} %)",
-            p.pid, p.cpu_mean_percent, p.rss_after_warmup_kib, p.rss_max_after_warmup_kib, p.rss_growth_percent
+            "{name}: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
+            a.beta_switches_with,
+            a.beta_switches_without,
+            a.with_hysteresis.collisions,
+            a.without_hysteresis.collisions
+        );
+        println!(
+            "  with hysteresis: {}",
+            report::episode_summary_line(&a.with_hysteresis)
+        );
+        println!(
+            "  without hysteresis: {}",
+            report::episode_summary_line(&a.without_hysteresis)
         );
     }
-}
-
-fn parse_transport(s: &str) -> Result<Transport, String> {
-    // A Zenoh target comes from --zenoh-connect / --zenoh-config (see prepare_transport).
-    s.parse::<Transport>().map_err(|e| e.to_string())
-}
-
-fn planner_config(path: Option<&Path>) -> Result<PlannerConfig> {
-    match path {
-        None => Ok(PlannerConfig::default()),
-        Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading planner config {}", p.display()))?;
-            PlannerConfig::from_toml_str(&text).with_context(|| format!("planner config {}", p.display()))
-        }
-    }
+    print_files(&files);
+    Ok(())
 }
 
 fn print_files(files: &[PathBuf]) {
@@ -527,30 +462,16 @@ fn print_files(files: &[PathBuf]) {
 }
 
 fn main() -> Result<()> {
-    // Die quietly on a closed stdout (`... | head`), as command-line tools do, instead of
-    // panicking in `println!`. SAFETY: resets a disposition before any thread exists.
-    #[cfg(unix)]
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL)
-    };
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: journald and log files get plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
+    supervise::init_process("warn");
     let cli = Cli::parse();
     let started = Instant::now();
     let mut exit_code = None;
     match cli.command {
         Command::Load(args) => {
-            run_load_command(args, std::time::Duration::from_secs(30), false)?;
+            run_load_command(args, Duration::from_secs(30), false)?;
         }
         Command::Soak { load, max_rss_growth } => {
-            let report = run_load_command(load, std::time::Duration::from_secs(3600), true)?;
+            let report = run_load_command(load, Duration::from_secs(3600), true)?;
             let violations = report.soak_violations(max_rss_growth);
             if violations.is_empty() {
                 println!("soak: PASS (every request answered exactly once by its deadline; planner RSS flat)");
@@ -562,7 +483,7 @@ fn main() -> Result<()> {
             }
         }
         Command::LoadWorker {
-            mut common,
+            common,
             clients,
             rate,
             duration,
@@ -571,149 +492,32 @@ fn main() -> Result<()> {
             vehicle_id_base,
             part_out,
         } => {
-            let _none = prepare_transport(&mut common)?;
-            let mut settings = LoadSettings::new(common.transport.clone(), clients, rate, duration);
-            settings.deadline = std::time::Duration::from_millis(deadline_ms);
+            let (transport, _none) = common.open(None)?;
+            let mut settings = LoadSettings::new(transport, clients, rate, duration);
+            settings.deadline = Duration::from_millis(deadline_ms);
             settings.seed = seed;
             settings.vehicle_id_base = vehicle_id_base;
-            settings.planner = planner_config(common.planner_config.as_deref())?;
+            settings.planner = common.planner_config()?;
             let part = load::run_part(&settings, Instant::now())?;
             std::fs::write(&part_out, serde_json::to_string(&part)?)
                 .with_context(|| format!("writing {}", part_out.display()))?;
             return Ok(());
         }
-        Command::Case1 {
-            mut common,
-            seed,
-            paper,
-        } => {
-            let _planner = prepare_transport(&mut common)?;
-            let config = planner_config(common.planner_config.as_deref())?;
-            let case = cases::run_case1_compared(&config, Some(&paper.config()?), &common.transport, seed)?;
-            let files = report::write_case1(&common.out, &case)?;
-            println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
-            if let Some(p) = &case.paper_literal {
-                println!("case1 paper_literal: {}", report::episode_summary_line(&p.metrics));
-            }
-            print_files(&files);
-        }
-        Command::Case2 {
-            mut common,
-            seed,
-            paper,
-        } => {
-            if common.transport != Transport::InProcess {
-                // A planner process has one configuration; the ablation needs two.
-                anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
-            }
-            // Refuses the remote-transport flags, which mean nothing in process.
-            let _none = prepare_transport(&mut common)?;
-            let config = planner_config(common.planner_config.as_deref())?;
-            let case = cases::run_case2(&config, Some(&paper.config()?), &common.transport, seed)?;
-            let files = report::write_case2(&common.out, &case)?;
-            let s = case.summary();
-            for (name, a) in
-                std::iter::once(("case2", &s.planner)).chain(s.paper_literal.iter().map(|a| ("case2 paper_literal", a)))
-            {
-                println!(
-                    "{name}: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
-                    a.beta_switches_with,
-                    a.beta_switches_without,
-                    a.with_hysteresis.collisions,
-                    a.without_hysteresis.collisions
-                );
-                println!(
-                    "  with hysteresis: {}",
-                    report::episode_summary_line(&a.with_hysteresis)
-                );
-                println!(
-                    "  without hysteresis: {}",
-                    report::episode_summary_line(&a.without_hysteresis)
-                );
-            }
-            print_files(&files);
-        }
+        Command::Case1 { common, seed, paper } => run_case1(&common, seed, &paper)?,
+        Command::Case2 { common, seed, paper } => run_case2(&common, seed, &paper)?,
         Command::Campaign {
-            mut common,
+            common,
             trials_scale,
             config,
             seed,
             threads,
             baselines,
             paper,
-        } => {
-            if common.transport != Transport::InProcess && baselines {
-                // A planner process has one configuration; the no-hysteresis baseline needs another.
-                anyhow::bail!("with a remote transport, run the campaign with --baselines false");
-            }
-            let _planner = prepare_transport(&mut common)?;
-            let planner = planner_config(common.planner_config.as_deref())?;
-            let entries = match &config {
-                Some(p) => campaign::load_entries(p)?,
-                None => campaign::paper_entries(),
-            };
-            let entries = campaign::scale_trials(&entries, trials_scale)?;
-            let threads = threads
-                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-                .max(1);
-            let mut settings = CampaignSettings::new(entries, seed, threads);
-            settings.baselines = baselines;
-            settings.planner = planner;
-            settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
-            settings.transport = common.transport;
-            let total = settings.episode_count() as u64;
-            let bar = if std::io::stderr().is_terminal() {
-                ProgressBar::new(total)
-            } else {
-                ProgressBar::hidden()
-            };
-            bar.set_style(
-                ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} episodes, eta {eta}")
-                    .expect("valid template"),
-            );
-            let results = campaign::run_campaign(&settings, &|| bar.inc(1))?;
-            bar.finish_and_clear();
-            let files = report::write_campaign(&common.out, &results)?;
-            for g in &results.overall {
-                println!(
-                    "{:<22} trials {:>5}  decisions {:>7}  collision rate {:.2}%  NOR {}  GSRR {}  FBR {}  solve mean {:.3} ms p99 {:.3} ms max {:.3} ms",
-                    g.driver.name(),
-                    g.trials,
-                    g.decisions,
-                    100.0 * g.collision_rate,
-                    g.nor.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v)),
-                    g.gsrr.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v)),
-                    g.fbr.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v)),
-                    g.solve_time.mean_ms,
-                    g.solve_time.p99_ms,
-                    g.solve_time.max_ms,
-                );
-                let s = &g.safety;
-                println!(
-                    "{:<22} collisions at fault {} / hit in lane {} / SV-SV {}  hard brakes {:.1}/h  min TTC p5 {} p50 {} s  TTC<3s {:.2}%  headway<1s {:.2}%  max DRAC {:.2} m/s^2",
-                    "",
-                    g.collision_split.ego_at_fault,
-                    g.collision_split.ego_hit_in_lane,
-                    g.collision_split.sv_sv,
-                    s.hard_braking_per_hour,
-                    s.min_ttc_p5_s.map_or("inf".into(), |v| format!("{v:.2}")),
-                    s.min_ttc_p50_s.map_or("inf".into(), |v| format!("{v:.2}")),
-                    100.0 * s.ttc_below_3s_share,
-                    100.0 * s.headway_below_1s_share,
-                    s.max_drac_mps2,
-                );
-            }
-            println!(
-                "campaign wall time {:.1} s on {} thread(s)",
-                results.wall_time_s, results.threads
-            );
-            print_files(&files);
-        }
-    }
-    if let Some(code) = exit_code {
-        println!("wall time {:.2} s", started.elapsed().as_secs_f64());
-        std::process::exit(code);
+        } => run_campaign(&common, trials_scale, config, seed, threads, baselines, &paper)?,
     }
     println!("wall time {:.2} s", started.elapsed().as_secs_f64());
+    if let Some(code) = exit_code {
+        std::process::exit(code);
+    }
     Ok(())
 }

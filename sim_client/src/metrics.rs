@@ -1,44 +1,13 @@
 //! Per-episode metrics and their aggregation (pure).
 
-use decision::Layer;
 use serde::{Deserialize, Serialize};
 
 use crate::episode::Episode;
 use crate::safety::{EgoCollisionKind, SafetySummary};
 
-/// Decisions counted by the layer that produced them.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct LayerCounts {
-    /// Nominal MPC.
-    pub nominal: u64,
-    /// Layer A, bounded global relaxation.
-    pub global_relaxation: u64,
-    /// Layer B, deterministic fallback.
-    pub fallback: u64,
-}
-
-impl LayerCounts {
-    /// Counts one decision of `layer`.
-    pub fn add(&mut self, layer: Layer) {
-        match layer {
-            Layer::Nominal => self.nominal += 1,
-            Layer::GlobalRelaxation => self.global_relaxation += 1,
-            Layer::Fallback => self.fallback += 1,
-        }
-    }
-
-    /// Sum of two tallies.
-    pub fn merge(&mut self, other: &LayerCounts) {
-        self.nominal += other.nominal;
-        self.global_relaxation += other.global_relaxation;
-        self.fallback += other.fallback;
-    }
-
-    /// All decisions counted.
-    pub fn total(&self) -> u64 {
-        self.nominal + self.global_relaxation + self.fallback
-    }
-}
+/// Decisions counted by the layer that produced them (the shared tally; rejections stay 0
+/// in an episode, which stops at one).
+pub use stats::LayerCounts;
 
 /// Collisions by who caused them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -172,11 +141,10 @@ impl SolveTimeStats {
         samples.sort_unstable();
         let n = samples.len();
         let sum: u64 = samples.iter().sum();
-        let rank = ((0.99 * n as f64).ceil() as usize).clamp(1, n);
         SolveTimeStats {
             samples: n as u64,
             mean_ms: sum as f64 / n as f64 / 1000.0,
-            p99_ms: samples[rank - 1] as f64 / 1000.0,
+            p99_ms: stats::nearest_rank(samples, 0.99) as f64 / 1000.0,
             max_ms: samples[n - 1] as f64 / 1000.0,
         }
     }
@@ -186,6 +154,7 @@ impl SolveTimeStats {
 mod tests {
     use super::*;
     use crate::episode::{DecisionRecord, Episode};
+    use protocol::Layer;
 
     fn record(index: u64, layer: Layer, lane: u8, beta: i8, corrective: usize) -> DecisionRecord {
         DecisionRecord {
@@ -235,7 +204,8 @@ mod tests {
             LayerCounts {
                 nominal: 4,
                 global_relaxation: 1,
-                fallback: 1
+                fallback: 1,
+                ..LayerCounts::default()
             }
         );
         assert_eq!(m.beta_switches, 3, "1 -> 0 -> -1 -> 0");

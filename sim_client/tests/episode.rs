@@ -1,8 +1,9 @@
 //! The closed loop: determinism and the in-process link.
 
-use decision::{Decision, Planner, PlannerConfig, Situation};
+use decision::{Planner, PlannerConfig};
+use protocol::PlanRequest;
 use sim_client::episode::{run_episode, Driver, EpisodeSpec};
-use sim_client::link::{InProcess, LinkError, PlannerLink};
+use sim_client::link::{InProcess, LinkError, Planned, PlannerLink};
 use sim_client::report::{decisions_csv, json_bytes};
 use sim_client::safety::EgoCollisionKind;
 use traffic::{Scenario, SimParams, TrafficConfig};
@@ -72,7 +73,7 @@ fn at_most_max_svs_nearest_are_sent() {
     spec.max_svs = 3;
     struct Check(InProcess, Vec<usize>);
     impl PlannerLink for Check {
-        fn decide(&mut self, s: &Situation) -> Result<Decision, LinkError> {
+        fn decide(&mut self, s: &PlanRequest) -> Result<Planned, LinkError> {
             self.1.push(s.svs.len());
             assert!(s.svs.windows(2).all(|w| w[0].id < w[1].id));
             self.0.decide(s)
@@ -85,16 +86,16 @@ fn at_most_max_svs_nearest_are_sent() {
     assert!(link.1.contains(&3));
 }
 
-/// Records every situation and the decision it got.
+/// Records every request and the answer it got.
 struct Recorder {
     inner: InProcess,
-    log: Vec<(Situation, Decision)>,
+    log: Vec<(PlanRequest, Planned)>,
 }
 
 impl PlannerLink for Recorder {
-    fn decide(&mut self, situation: &Situation) -> Result<Decision, LinkError> {
-        let d = self.inner.decide(situation)?;
-        self.log.push((situation.clone(), d.clone()));
+    fn decide(&mut self, request: &PlanRequest) -> Result<Planned, LinkError> {
+        let d = self.inner.decide(request)?;
+        self.log.push((request.clone(), d.clone()));
         Ok(d)
     }
 }
@@ -109,41 +110,43 @@ fn in_process_link_matches_the_planner_called_directly() {
     run_episode(&spec, Driver::Planner(&mut rec)).unwrap();
     assert!(rec.log.len() > 5);
     let mut direct = Planner::new(PlannerConfig::default()).unwrap();
-    for (k, (situation, via_link)) in rec.log.iter().enumerate() {
-        let d = direct.decide(situation).unwrap();
+    for (k, (request, via_link)) in rec.log.iter().enumerate() {
+        let d = direct.decide(&request.to_situation()).unwrap();
         assert_eq!(d.next_maneuver, via_link.next_maneuver, "decision {k}");
-        assert_eq!(d.action, via_link.action, "decision {k}");
-        assert_eq!(d.layer, via_link.layer, "decision {k}");
+        assert_eq!(protocol::Layer::from(d.layer), via_link.layer, "decision {k}");
         assert_eq!(d.plan, via_link.plan, "decision {k}");
-        assert_eq!(d.memory, via_link.memory, "decision {k}");
-        assert_eq!(d.stats.cost, via_link.stats.cost, "decision {k}");
-        // The memory handed back is the one of the previous decision.
+        assert_eq!(d.setpoint, via_link.setpoint.into(), "decision {k}");
+        assert_eq!(
+            d.memory,
+            decision::PlannerMemory::from(&via_link.memory),
+            "decision {k}"
+        );
+        assert_eq!(d.stats.corrective_svs, via_link.corrective_svs, "decision {k}");
+        // The memory handed back is the one of the previous answer, in wire form.
         if k > 0 {
-            assert_eq!(situation.memory, rec.log[k - 1].1.memory, "memory of decision {k}");
+            assert_eq!(request.memory, rec.log[k - 1].1.memory, "memory of decision {k}");
         }
     }
 }
 
 #[test]
 fn transport_flag_names_what_each_transport_needs() {
-    use sim_client::link::ZenohTarget;
-    use sim_client::{LinkOptions, Transport};
-    assert_eq!("inproc".parse::<Transport>().unwrap(), Transport::InProcess);
-    assert_eq!(
-        "iceoryx2".parse::<Transport>().unwrap(),
-        Transport::Iceoryx2 { prefix: None }
-    );
-    // Zenoh is reached through an endpoint or a configuration file, which a bare name
-    // cannot carry: connecting says what is missing.
-    let zenoh = "zenoh".parse::<Transport>().unwrap();
-    assert_eq!(zenoh, Transport::Zenoh(ZenohTarget::default()));
+    use sim_client::{LinkOptions, Transport, ZenohTarget};
+    // Zenoh is reached through an endpoint or a configuration file: connecting without one
+    // says what is missing.
+    let zenoh = Transport::Zenoh(ZenohTarget::default());
     let e = zenoh
         .open_channel(&decision::PlannerConfig::default(), &LinkOptions::default())
         .err()
         .expect("no target")
         .to_string();
     assert!(e.contains("--zenoh-connect"), "{e}");
-    let e = "carrier-pigeon".parse::<Transport>().unwrap_err().to_string();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim_client"))
+        .args(["case1", "--transport", "carrier-pigeon"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
     assert!(
         e.contains("inproc") && e.contains("iceoryx2") && e.contains("zenoh"),
         "{e}"

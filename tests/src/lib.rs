@@ -21,10 +21,10 @@ pub fn binary(name: &str) -> PathBuf {
     path
 }
 
-/// A workspace binary started as a child process with its stderr in a log file; killed
-/// (SIGKILL) on drop, also when a test panics.
+/// A workspace binary started as a child process with its stderr in a log file; stopped on
+/// drop (SIGTERM, then SIGKILL), also when a test panics.
 pub struct Process {
-    child: std::process::Child,
+    child: supervise::Supervised,
     log: PathBuf,
 }
 
@@ -32,14 +32,16 @@ impl Process {
     /// Starts `binary(name)` with `args`; stderr goes to `<scratch>/<tag>.log`.
     pub fn start(name: &str, args: &[&str], tag: &str) -> Self {
         let log = scratch_dir("logs").join(format!("{tag}.log"));
-        let child = std::process::Command::new(binary(name))
+        let mut command = std::process::Command::new(binary(name));
+        command
             .args(args)
             .env("RUST_LOG", "info,zenoh=warn")
             .stdin(std::process::Stdio::null())
             .stdout(std::process::Stdio::null())
-            .stderr(std::fs::File::create(&log).expect("log file"))
-            .spawn()
-            .unwrap_or_else(|e| panic!("{name} starts: {e}"));
+            .stderr(std::fs::File::create(&log).expect("log file"));
+        let child = supervise::Supervised::spawn(&mut command, true)
+            .unwrap_or_else(|e| panic!("{name} starts: {e}"))
+            .with_grace(std::time::Duration::from_secs(3));
         Self { child, log }
     }
 
@@ -55,38 +57,17 @@ impl Process {
 
     /// SIGKILL: the process gets no chance to clean up.
     pub fn kill(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.child.kill();
     }
 
     /// SIGTERM, then waits up to `wait` for the exit; the exit status, if it exited.
     pub fn terminate(&mut self, wait: std::time::Duration) -> Option<std::process::ExitStatus> {
-        if let Ok(pid) = i32::try_from(self.child.id()) {
-            // SAFETY: signals our own, not yet reaped, child.
-            unsafe { libc::kill(pid, libc::SIGTERM) };
-        }
-        let until = std::time::Instant::now() + wait;
-        while std::time::Instant::now() < until {
-            if let Ok(Some(status)) = self.child.try_wait() {
-                return Some(status);
-            }
-            std::thread::sleep(std::time::Duration::from_millis(20));
-        }
-        None
+        self.child.terminate(wait)
     }
 
     /// Whether the process is still running.
     pub fn is_running(&mut self) -> bool {
-        matches!(self.child.try_wait(), Ok(None))
-    }
-}
-
-impl Drop for Process {
-    /// SIGTERM first, so that a planner releases its shared memory; SIGKILL if it hangs.
-    fn drop(&mut self) {
-        if self.is_running() && self.terminate(std::time::Duration::from_secs(3)).is_none() {
-            self.kill();
-        }
+        self.child.is_running()
     }
 }
 
@@ -98,44 +79,18 @@ pub fn scratch_dir(name: &str) -> PathBuf {
 }
 
 /// An iceoryx2 prefix no other test (or test run) uses, so that tests cannot meet each
-/// other's planners in shared memory. Dropping it removes every file left under the prefix
-/// (iceoryx2 keeps a management segment per prefix, and a SIGKILLed process leaves more).
-pub struct Iceoryx2Prefix(String);
+/// other's planners in shared memory; its files are removed when dropped.
+pub struct Iceoryx2Prefix(supervise::ShmPrefix);
 
 impl Iceoryx2Prefix {
     /// A new prefix containing `tag`.
     pub fn new(tag: &str) -> Self {
-        use std::sync::atomic::{AtomicU32, Ordering};
-        static NEXT: AtomicU32 = AtomicU32::new(0);
-        Self(format!(
-            "hmdpt{}{}{}_",
-            std::process::id(),
-            tag,
-            NEXT.fetch_add(1, Ordering::Relaxed)
-        ))
+        Self(supervise::ShmPrefix::unique(&format!("hmdpt{tag}")))
     }
 
     /// The prefix.
     pub fn as_str(&self) -> &str {
-        &self.0
-    }
-}
-
-impl Drop for Iceoryx2Prefix {
-    fn drop(&mut self) {
-        fn remove_under(dir: &std::path::Path, prefix: &str) {
-            let Ok(entries) = std::fs::read_dir(dir) else { return };
-            for entry in entries.flatten() {
-                let path = entry.path();
-                if path.is_dir() {
-                    remove_under(&path, prefix);
-                } else if entry.file_name().to_string_lossy().starts_with(prefix) {
-                    let _ = std::fs::remove_file(&path);
-                }
-            }
-        }
-        remove_under(std::path::Path::new("/dev/shm"), &self.0);
-        remove_under(&std::env::temp_dir().join("iceoryx2"), &self.0);
+        self.0.as_str()
     }
 }
 
@@ -182,7 +137,7 @@ impl ZenohPlanner {
 /// request number `sequence`.
 pub fn worked_example_request(vehicle_id: u64, sequence: u64) -> protocol::PlanRequest {
     let mut r: protocol::PlanRequest = protocol::decode_json_str(
-        r#"{"version":1,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
+        r#"{"version":2,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
             "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
             "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
             "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
@@ -209,4 +164,41 @@ pub fn case1_decisions(dir: &std::path::Path, name: &str, args: &[&str], planner
         planner_log()
     );
     std::fs::read(dir.join(name).join("case1/decisions.csv")).expect("decisions.csv")
+}
+
+/// `vehicles` vehicles at once, each on its own thread with its own connection
+/// (`connect(vehicle)`), asking `requests` times (`ask(connection, vehicle, sequence)`):
+/// every request must get a decision, each exactly once.
+pub fn concurrent_vehicles_each_answered_once<C>(
+    vehicles: u64,
+    requests: u64,
+    connect: impl Fn(u64) -> C + Sync,
+    ask: impl Fn(&mut C, u64, u64) -> protocol::PlanResponse + Sync,
+) {
+    let mut all: Vec<(u64, u64)> = std::thread::scope(|scope| {
+        let threads: Vec<_> = (1..=vehicles)
+            .map(|vehicle| {
+                let (connect, ask) = (&connect, &ask);
+                scope.spawn(move || {
+                    let mut connection = connect(vehicle);
+                    (1..=requests)
+                        .map(|sequence| {
+                            let r = ask(&mut connection, vehicle, sequence);
+                            assert!(r.outcome.as_decided().is_some(), "{r:?}");
+                            (r.vehicle_id, r.sequence)
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        threads
+            .into_iter()
+            .flat_map(|t| t.join().expect("vehicle thread"))
+            .collect()
+    });
+    all.sort_unstable();
+    let expected: Vec<(u64, u64)> = (1..=vehicles)
+        .flat_map(|v| (1..=requests).map(move |s| (v, s)))
+        .collect();
+    assert_eq!(all, expected);
 }

@@ -7,9 +7,12 @@
 
 use std::time::{Duration, Instant};
 
-use iceoryx2_transport::{Client, ClientOptions, Exchange};
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason};
-use system_tests::{case1_decisions, free_port, scratch_dir, worked_example_request, Iceoryx2Prefix, Process};
+use system_tests::{
+    case1_decisions, concurrent_vehicles_each_answered_once, free_port, scratch_dir, worked_example_request,
+    Iceoryx2Prefix, Process,
+};
+use transport::iceoryx2::{Client, ClientOptions, Exchange};
 
 /// How long a planner may take to start answering (a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
@@ -25,6 +28,7 @@ fn connect(prefix: &str, name: &str) -> Client {
         prefix: Some(prefix.to_string()),
         ready_timeout: STARTUP,
         node_name: name.to_string(),
+        ..ClientOptions::default()
     };
     Client::connect(&options).expect("the planner's iceoryx2 services")
 }
@@ -34,7 +38,9 @@ fn connect(prefix: &str, name: &str) -> Client {
 fn wait_until_serving(client: &mut Client, planner: &Process) {
     let give_up = Instant::now() + STARTUP;
     loop {
-        let exchange = client.request(request(999, 0), Duration::from_millis(500)).unwrap();
+        let exchange = client
+            .request(PlanRequest::probe(999), Duration::from_millis(500))
+            .unwrap();
         if exchange.response.is_some() {
             return;
         }
@@ -67,8 +73,8 @@ fn rejection(response: &PlanResponse) -> (RejectReason, String) {
     }
 }
 
-fn iceoryx2_config(prefix: &str) -> iceoryx2_transport::IceoryxConfig {
-    iceoryx2_transport::config(Some(prefix)).unwrap()
+fn iceoryx2_config(prefix: &str) -> transport::iceoryx2::IceoryxConfig {
+    transport::iceoryx2::config(Some(prefix)).unwrap()
 }
 
 #[test]
@@ -99,31 +105,17 @@ fn eight_concurrent_vehicles_each_get_every_answer_exactly_once() {
     let planner = start_planner(&prefix, "eight-planner", &[]);
     let mut probe = connect(&prefix, "probe");
     wait_until_serving(&mut probe, &planner);
-    let threads: Vec<_> = (1..=8u64)
-        .map(|vehicle| {
-            let prefix = prefix.clone();
-            std::thread::spawn(move || {
-                let mut client = connect(&prefix, &format!("vehicle-{vehicle}"));
-                (1..=20u64)
-                    .map(|sequence| {
-                        let exchange = client
-                            .request(request(vehicle, sequence), Duration::from_secs(5))
-                            .unwrap();
-                        let r = answered(exchange, vehicle, sequence);
-                        assert!(r.outcome.as_decided().is_some(), "{r:?}");
-                        (r.vehicle_id, r.sequence)
-                    })
-                    .collect::<Vec<_>>()
-            })
-        })
-        .collect();
-    let mut all = Vec::new();
-    for t in threads {
-        all.extend(t.join().expect("vehicle thread"));
-    }
-    all.sort_unstable();
-    let expected: Vec<(u64, u64)> = (1..=8u64).flat_map(|v| (1..=20u64).map(move |s| (v, s))).collect();
-    assert_eq!(all, expected);
+    concurrent_vehicles_each_answered_once(
+        8,
+        20,
+        |vehicle| connect(&prefix, &format!("vehicle-{vehicle}")),
+        |client, vehicle, sequence| {
+            let exchange = client
+                .request(request(vehicle, sequence), Duration::from_secs(5))
+                .unwrap();
+            answered(exchange, vehicle, sequence)
+        },
+    );
 }
 
 #[test]
@@ -171,7 +163,7 @@ fn invalid_requests_get_typed_rejections() {
         answered(client.request(r, Duration::from_secs(5)).unwrap(), v, s)
     };
     let mut wrong_version = request(5, 1);
-    wrong_version.version = 2;
+    wrong_version.version = 1;
     assert_eq!(
         rejection(&ask(wrong_version)),
         (RejectReason::UnsupportedVersion, "version".into())
@@ -201,10 +193,10 @@ fn planner_killed_and_restarted_clients_recover_and_stale_memory_is_removed() {
             sequence,
         );
     }
-    assert_eq!(iceoryx2_transport::dead_nodes(&config), 0);
+    assert_eq!(transport::iceoryx2::dead_nodes(&config), 0);
     planner.kill();
     assert!(
-        iceoryx2_transport::dead_nodes(&config) >= 1,
+        transport::iceoryx2::dead_nodes(&config) >= 1,
         "a SIGKILLed planner leaves its node behind"
     );
     // No answer, but no hang either: every request returns by its wait.
@@ -236,7 +228,7 @@ fn planner_killed_and_restarted_clients_recover_and_stale_memory_is_removed() {
         sequence += 1;
     }
     assert_eq!(
-        iceoryx2_transport::dead_nodes(&config),
+        transport::iceoryx2::dead_nodes(&config),
         0,
         "the restarted planner removed the dead node's resources"
     );
@@ -280,7 +272,7 @@ fn a_vehicle_killed_mid_request_does_not_disturb_the_others() {
     }
     // A new vehicle (a new node) removes what the victim left behind.
     drop(connect(&prefix, "vkill-newcomer"));
-    assert_eq!(iceoryx2_transport::dead_nodes(&iceoryx2_config(&prefix)), 0);
+    assert_eq!(transport::iceoryx2::dead_nodes(&iceoryx2_config(&prefix)), 0);
 }
 
 #[test]
@@ -292,12 +284,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     let mut planner = start_planner(&prefix, "both-planner", &["--zenoh-listen", &endpoint]);
     let mut shm = connect(&prefix, "both-vehicle");
     wait_until_serving(&mut shm, &planner);
-    let json = serde_json::json!({
-        "mode": "client",
-        "connect": { "endpoints": [endpoint] },
-        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
-    });
-    let session = zenoh::open(zenoh::Config::from_json5(&json.to_string()).unwrap())
+    let session = zenoh::open(transport::zenoh::client_config(&endpoint).unwrap())
         .wait()
         .expect("a zenoh session to the planner");
     let over_zenoh = |sequence: u64| -> PlanResponse {
@@ -325,7 +312,8 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     drop(session);
     drop(shm);
     assert!(planner.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()));
-    // Both front ends fed one service: its final statistics count every answer (the probe too).
+    // Both front ends fed one service: its final statistics count every answer, the probes
+    // apart.
     let log = planner.log();
     let stats = log
         .lines()
@@ -333,6 +321,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
         .and_then(|l| l.split("stats=").nth(1))
         .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
     let stats: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
-    let answered = stats["answered"].as_u64().unwrap();
-    assert!(answered >= 10, "answered {answered}: {stats}");
+    assert_eq!(stats["answered"].as_u64(), Some(10), "{stats}");
+    assert_eq!(stats["by_layer"]["rejected"].as_u64(), Some(0), "{stats}");
+    assert!(stats["probes"].as_u64().is_some_and(|p| p >= 1), "{stats}");
 }

@@ -208,3 +208,31 @@ fn load_in_several_processes_accounts_for_every_request() {
     );
     std::thread::sleep(Duration::from_millis(10));
 }
+
+#[test]
+fn busy_poll_load_over_iceoryx2_answers_every_request() {
+    // The latency mode on both sides (the spawned planner gets --busy-poll too); a plain
+    // number of seconds as the duration.
+    let dir = scratch_dir("busy-poll");
+    let args = [
+        "load",
+        "--transport",
+        "iceoryx2",
+        "--spawn-planner",
+        "--busy-poll",
+        "--clients",
+        "2",
+        "--rate",
+        "5",
+        "--duration",
+        "4",
+    ];
+    let (ok, report, text) = run_sim_client(&dir, &args);
+    assert!(ok, "{text}");
+    let sent = count(&report, "sent");
+    assert!(sent >= 20, "sent {sent}:\n{text}");
+    assert_eq!(count(&report, "in_time"), sent, "{text}");
+    assert_eq!(count(&report, "duplicated") + count(&report, "mismatched"), 0, "{text}");
+    // Readiness probes are not rejections.
+    assert_eq!(report["by_layer"]["rejected"].as_u64(), Some(0), "{text}");
+}

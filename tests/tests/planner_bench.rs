@@ -17,7 +17,7 @@ fn bench_reports_full_agreement_and_ordered_percentiles() {
     assert_eq!(report["classes"].as_array().unwrap().len(), 18);
     for backend in ["milp", "enumeration"] {
         let t = &report["backends"][backend];
-        assert_eq!(t["solved"], 72);
+        assert_eq!(t["count"], 72);
         let (p50, p99, max) = (
             t["p50_us"].as_u64().unwrap(),
             t["p99_us"].as_u64().unwrap(),

@@ -185,7 +185,9 @@ fn oracle(planner: &mut Planner, request: &Value) -> Value {
         Ok(r) => r,
         // Undecodable JSON: the service names the list that is over capacity.
         Err(WireError::CapacityExceeded(_)) => {
-            let field = protocol::request_over_capacity_field(text.as_bytes(), true).unwrap_or("");
+            let field = protocol::WireFormat::Json
+                .over_capacity_field(text.as_bytes())
+                .unwrap_or("");
             return rejected(Rejected::new(RejectReason::CapacityExceeded, field));
         }
         Err(e) => panic!("the test sent a request the service cannot decode: {e}"),
@@ -203,7 +205,7 @@ fn oracle(planner: &mut Planner, request: &Value) -> Value {
 fn printed_decision(line: &Value) -> Value {
     assert!(line.get("rejected").is_none(), "expected a decision, got {line}");
     let mut decided = serde_json::Map::new();
-    for key in ["action", "next_maneuver", "plan", "layer", "memory"] {
+    for key in ["action", "next_maneuver", "setpoint", "plan", "layer", "memory"] {
         let value = line.get(key).unwrap_or_else(|| panic!("no {key} in {line}"));
         decided.insert(key.into(), value.clone());
     }
@@ -288,7 +290,7 @@ fn snapshot(v_ego: f64, svs: &[(u32, f64, u8, f64)]) -> Value {
         })
         .collect();
     json!({
-        "version": 1,
+        "version": 2,
         "vehicle_id": 11,
         "sequence": 1,
         "timestamp_ns": 5_000_000_000u64,
@@ -399,8 +401,8 @@ fn bad_snapshots_exit_2_with_the_reason() {
     if !python_ready() {
         return;
     }
-    // A planner that takes at most 4 SVs, so that "too many vehicles" is the planner's own
-    // check (reason 17), not the wire capacity of 16.
+    // A planner that uses at most 4 SVs: more are accepted (it uses the nearest), up to the
+    // wire capacity of 64.
     let config = "[perception]\nmax_svs = 4\n";
     let dir = scratch_dir("rejections-config");
     let config_path = dir.join("planner.toml");
@@ -410,16 +412,16 @@ fn bad_snapshots_exit_2_with_the_reason() {
 
     let mut off_road = snapshot(25.0, &[(1, 50.0, 2, 20.0)]);
     off_road["ego"]["maneuver"]["lane"] = 4.into();
-    let five: Vec<_> = (1..=5)
-        .map(|i| (i, 20.0 * f64::from(i), 1 + (i % 3) as u8, 20.0))
-        .collect();
-    let seventeen: Vec<_> = (1..=17)
-        .map(|i| (i, 10.0 * f64::from(i), 1 + (i % 3) as u8, 20.0))
+    // Beyond the tolerance of -0.5 m/s, read as 0.
+    let mut reversing = snapshot(25.0, &[(1, 50.0, 2, 20.0)]);
+    reversing["ego"]["v_mps"] = (-0.75).into();
+    let too_many: Vec<_> = (1..=65)
+        .map(|i| (i, 5.0 * f64::from(i), 1 + (i % 3) as u8, 20.0))
         .collect();
     let cases = [
         ("lane", off_road, "lane_out_of_range", "ego.maneuver.lane"),
-        ("five-svs", snapshot(25.0, &five), "too_many_vehicles", "svs"),
-        ("seventeen-svs", snapshot(25.0, &seventeen), "capacity_exceeded", "svs"),
+        ("reversing", reversing, "negative_speed", "ego.v_mps"),
+        ("sixty-five-svs", snapshot(25.0, &too_many), "capacity_exceeded", "svs"),
     ];
     for (name, request, reason, field) in &cases {
         // Also with --steps: a rejection ends the sequence.

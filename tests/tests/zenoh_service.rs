@@ -9,107 +9,52 @@ use std::time::{Duration, Instant};
 
 use protocol::containers::Vector as _;
 use protocol::{
-    decode_bincode, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason, ENCODING_BINCODE,
-    ZENOH_PLAN_KEY,
+    decode_bincode, encode_bincode, Layer, OutcomeRef, PlanRequest, PlanResponse, RejectReason, WireFormat,
 };
-use system_tests::{binary, case1_decisions, scratch_dir, worked_example_request, ZenohPlanner as Planner};
-use zenoh::bytes::Encoding;
-use zenoh::Wait;
+use system_tests::{
+    binary, case1_decisions, concurrent_vehicles_each_answered_once, scratch_dir, worked_example_request,
+    ZenohPlanner as Planner,
+};
+use transport::zenoh::{ZenohChannel, ZenohTarget};
 
 /// How long a planner may take to start answering (debug builds on a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
 
-/// A client session and a querier on the plan key.
+/// A vehicle's Zenoh channel, with the raw replies at hand.
 struct Client {
-    _session: zenoh::Session,
-    querier: zenoh::query::Querier<'static>,
+    channel: ZenohChannel,
 }
 
 impl Client {
-    /// Connects and waits until the planner answers a probe (an empty payload, `malformed`).
+    /// Connects and waits until the planner answers a probe (the empty query).
     fn connect(planner: &Planner) -> Self {
         Self::connect_to(&planner.endpoint, &|| planner.log())
     }
 
     fn connect_to(endpoint: &str, log: &dyn Fn() -> String) -> Self {
-        let json = serde_json::json!({
-            "mode": "client",
-            "connect": { "endpoints": [endpoint] },
-            "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
-        });
-        let give_up = Instant::now() + STARTUP;
-        let session = loop {
-            let config = zenoh::Config::from_json5(&json.to_string()).unwrap();
-            match zenoh::open(config).wait() {
-                Ok(s) => break s,
-                Err(e) => {
-                    assert!(Instant::now() < give_up, "no zenoh session: {e}\n{}", log());
-                    std::thread::sleep(Duration::from_millis(100));
-                }
-            }
+        let target = ZenohTarget {
+            endpoint: Some(endpoint.to_string()),
+            config_file: None,
         };
-        let querier = session
-            .declare_querier(ZENOH_PLAN_KEY)
-            .timeout(Duration::from_secs(5))
-            .consolidation(zenoh::query::ConsolidationMode::None)
-            .wait()
-            .unwrap();
-        let client = Self {
-            _session: session,
-            querier,
-        };
-        loop {
-            if !client
-                .ask_raw(&[], Encoding::from(ENCODING_BINCODE), Duration::from_millis(500))
-                .is_empty()
-            {
-                return client;
-            }
-            assert!(Instant::now() < give_up, "planner never answered\n{}", log());
-            std::thread::sleep(Duration::from_millis(100));
-        }
+        let channel = ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
+            .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", log()));
+        Self { channel }
     }
 
     /// Every reply payload to one query until the query is final or `wait` runs out.
-    fn ask_raw(&self, payload: &[u8], encoding: Encoding, wait: Duration) -> Vec<Vec<u8>> {
-        let deadline = Instant::now() + wait;
-        let replies = self
-            .querier
-            .get()
-            .payload(payload.to_vec())
-            .encoding(encoding)
-            .wait()
-            .unwrap();
-        let mut out = Vec::new();
-        while let Ok(Some(reply)) = replies.recv_deadline(deadline) {
-            if let Ok(sample) = reply.result() {
-                out.push(sample.payload().to_bytes().into_owned());
-            }
-        }
-        out
+    fn ask_raw(&self, payload: &[u8], format: WireFormat, wait: Duration) -> Vec<Vec<u8>> {
+        let replies = self.channel.ask_raw(payload, format, wait);
+        replies.into_iter().map(|(bytes, _)| bytes).collect()
     }
 
     /// One bincode request; the first reply and when it came.
     fn ask(&self, request: &PlanRequest) -> (PlanResponse, Duration) {
-        let bytes = encode_bincode(request);
         let sent = Instant::now();
         let replies = self
-            .querier
-            .get()
-            .payload(bytes)
-            .encoding(Encoding::from(ENCODING_BINCODE))
-            .wait()
-            .unwrap();
-        let reply = replies
-            .recv_timeout(Duration::from_secs(5))
-            .unwrap()
-            .expect("an answer");
-        let elapsed = sent.elapsed();
-        let sample = reply.result().expect("an ok reply");
-        (
-            decode_bincode(&sample.payload().to_bytes()).expect("a response"),
-            elapsed,
-        )
+            .channel
+            .ask_raw(&encode_bincode(request), WireFormat::Bincode, Duration::from_secs(5));
+        let (bytes, at) = replies.into_iter().next().expect("an answer");
+        (decode_bincode(&bytes).expect("a response"), at - sent)
     }
 }
 
@@ -140,31 +85,17 @@ fn case1_over_zenoh_matches_in_process_byte_for_byte() {
 fn eight_concurrent_vehicles_each_get_every_answer_exactly_once() {
     let planner = Planner::start("concurrent", &[]);
     drop(Client::connect(&planner));
-    let threads: Vec<_> = (1..=8u64)
-        .map(|vehicle| {
-            let endpoint = planner.endpoint.clone();
-            std::thread::spawn(move || {
-                let client = Client::connect_to(&endpoint, &String::new);
-                let mut seen = Vec::new();
-                for sequence in 1..=20u64 {
-                    let bytes = encode_bincode(&request(vehicle, sequence));
-                    let replies = client.ask_raw(&bytes, Encoding::from(ENCODING_BINCODE), Duration::from_secs(5));
-                    assert_eq!(replies.len(), 1, "vehicle {vehicle} sequence {sequence}: one answer");
-                    let r: PlanResponse = decode_bincode(&replies[0]).unwrap();
-                    assert!(r.outcome.as_decided().is_some(), "{r:?}");
-                    seen.push((r.vehicle_id, r.sequence));
-                }
-                seen
-            })
-        })
-        .collect();
-    let mut all = Vec::new();
-    for t in threads {
-        all.extend(t.join().expect("vehicle thread"));
-    }
-    all.sort_unstable();
-    let expected: Vec<(u64, u64)> = (1..=8u64).flat_map(|v| (1..=20u64).map(move |s| (v, s))).collect();
-    assert_eq!(all, expected);
+    concurrent_vehicles_each_answered_once(
+        8,
+        20,
+        |_| Client::connect_to(&planner.endpoint, &String::new),
+        |client, vehicle, sequence| {
+            let bytes = encode_bincode(&request(vehicle, sequence));
+            let replies = client.ask_raw(&bytes, WireFormat::Bincode, Duration::from_secs(5));
+            assert_eq!(replies.len(), 1, "vehicle {vehicle} sequence {sequence}: one answer");
+            decode_bincode(&replies[0]).unwrap()
+        },
+    );
 }
 
 #[test]
@@ -192,13 +123,13 @@ fn watchdog_answers_the_fallback_by_the_deadline() {
 fn garbage_and_wrong_versions_are_rejected_with_their_reason() {
     let planner = Planner::start("rejections", &[]);
     let client = Client::connect(&planner);
-    let bincode = || Encoding::from(ENCODING_BINCODE);
+    let bincode = || WireFormat::Bincode;
     let one = |replies: Vec<Vec<u8>>| -> PlanResponse {
         assert_eq!(replies.len(), 1);
         decode_bincode(&replies[0]).unwrap()
     };
-    // Garbage (version field reads 1, rest is nonsense).
-    let garbage = one(client.ask_raw(&[1, 0, 0xff, 0xfe, 0x13], bincode(), Duration::from_secs(5)));
+    // Garbage (version field reads 2, rest is nonsense).
+    let garbage = one(client.ask_raw(&[2, 0, 0xff, 0xfe, 0x13], bincode(), Duration::from_secs(5)));
     assert_eq!(rejection(&garbage), RejectReason::Malformed);
     // Garbage that does not even carry a version.
     let garbage = one(client.ask_raw(&[0xde, 0xad, 0xbe, 0xef], bincode(), Duration::from_secs(5)));
@@ -211,18 +142,14 @@ fn garbage_and_wrong_versions_are_rejected_with_their_reason() {
     );
     // A wrong protocol version.
     let mut bytes = encode_bincode(&request(5, 9));
-    bytes[0] = 2;
+    bytes[0] = 3;
     let wrong = one(client.ask_raw(&bytes, bincode(), Duration::from_secs(5)));
     assert_eq!(rejection(&wrong), RejectReason::UnsupportedVersion);
     assert_eq!(wrong.outcome.as_rejected().unwrap().field(), "version");
     // JSON: a wrong version and an invalid input, answered in JSON.
     let mut json = serde_json::to_value(request(5, 10)).unwrap();
     json["version"] = 7.into();
-    let replies = client.ask_raw(
-        json.to_string().as_bytes(),
-        Encoding::APPLICATION_JSON,
-        Duration::from_secs(5),
-    );
+    let replies = client.ask_raw(json.to_string().as_bytes(), WireFormat::Json, Duration::from_secs(5));
     assert_eq!(replies.len(), 1);
     let wrong: PlanResponse = protocol::decode_json(&replies[0]).unwrap();
     assert_eq!(rejection(&wrong), RejectReason::UnsupportedVersion);
@@ -230,7 +157,7 @@ fn garbage_and_wrong_versions_are_rejected_with_their_reason() {
     bad.ego.v_mps = -3.0;
     let replies = client.ask_raw(
         protocol::encode_json(&bad).as_bytes(),
-        Encoding::APPLICATION_JSON,
+        WireFormat::Json,
         Duration::from_secs(5),
     );
     let bad: PlanResponse = protocol::decode_json(&replies[0]).unwrap();
@@ -267,7 +194,7 @@ fn planner_killed_and_restarted_zenoh_clients_recover_without_hanging() {
     let mut planner = Planner::start("restart", &[]);
     let endpoint = planner.endpoint.clone();
     let client = Client::connect(&planner);
-    let bincode = || Encoding::from(ENCODING_BINCODE);
+    let bincode = || WireFormat::Bincode;
     let ask = |sequence: u64, wait: Duration| -> Vec<Vec<u8>> {
         client.ask_raw(&encode_bincode(&request(6, sequence)), bincode(), wait)
     };
@@ -315,7 +242,7 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
         let client = Client::connect_to(&endpoint, &String::new);
         for sequence in 1..=40u64 {
             let bytes = encode_bincode(&request(77, sequence));
-            let replies = client.ask_raw(&bytes, Encoding::from(ENCODING_BINCODE), Duration::from_secs(5));
+            let replies = client.ask_raw(&bytes, WireFormat::Bincode, Duration::from_secs(5));
             assert_eq!(replies.len(), 1, "survivor sequence {sequence}: one answer");
             let r: PlanResponse = decode_bincode(&replies[0]).unwrap();
             assert_eq!((r.vehicle_id, r.sequence), (77, sequence));
@@ -325,7 +252,7 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
     });
     let client = Client::connect(&planner);
     let one = |bytes: &[u8]| -> PlanResponse {
-        let replies = client.ask_raw(bytes, Encoding::from(ENCODING_BINCODE), Duration::from_secs(5));
+        let replies = client.ask_raw(bytes, WireFormat::Bincode, Duration::from_secs(5));
         assert_eq!(replies.len(), 1, "one answer to {} bytes", bytes.len());
         decode_bincode(&replies[0]).unwrap()
     };
@@ -335,7 +262,7 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
         let r = one(&valid[..len]);
         assert_eq!(rejection(&r), RejectReason::Malformed, "truncated to {len} bytes");
     }
-    // More SVs than the capacity (17 > 16): the list length is patched in place.
+    // More SVs than the capacity (65 > 64): the list length is patched in place.
     let mut full = request(9, 2);
     let sv = *full.svs.first().unwrap();
     while full.svs.len() < protocol::MAX_SVS {
@@ -346,10 +273,10 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
     }
     let mut bytes = encode_bincode(&full);
     const SVS_LENGTH_OFFSET: usize = 81; // docs/protocol.md: the `svs` length, u64 LE
-    const SV_SIZE: usize = 36;
-    assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 16u64.to_le_bytes());
-    bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&17u64.to_le_bytes());
-    let end_of_svs = SVS_LENGTH_OFFSET + 8 + 16 * SV_SIZE;
+    const SV_SIZE: usize = 60;
+    assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 64u64.to_le_bytes());
+    bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&65u64.to_le_bytes());
+    let end_of_svs = SVS_LENGTH_OFFSET + 8 + 64 * SV_SIZE;
     let copy: Vec<u8> = bytes[end_of_svs - SV_SIZE..end_of_svs].to_vec();
     bytes.splice(end_of_svs..end_of_svs, copy);
     let r = one(&bytes);

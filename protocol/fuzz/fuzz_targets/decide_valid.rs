@@ -108,8 +108,12 @@ fn request(u: &mut Unstructured) -> Result<PlanRequest> {
             },
             x_m: num(u, -150.0, 200.0)?,
             y_m: lateral(u, &road)?,
-            v_mps: num(u, 0.0, 45.0)?,
+            v_mps: num(u, -0.6, 45.0)?,
             a_mps2: num(u, -8.0, 4.0)?,
+            vy_mps: num(u, -2.0, 2.0)?,
+            // 0 = unknown; a few implausible sizes reach the planner's range checks.
+            length_m: if u.ratio(1u8, 3)? { 0.0 } else { num(u, -1.0, 25.0)? },
+            width_m: if u.ratio(1u8, 3)? { 0.0 } else { num(u, -1.0, 4.0)? },
         };
         let _ = r.svs.push(sv);
     }

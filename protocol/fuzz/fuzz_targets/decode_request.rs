@@ -1,4 +1,4 @@
-//! Untrusted bytes through both decoders the planner service uses (`WireFormat::decode`),
+//! Untrusted bytes through both decoders the planner service uses (`protocol::WireFormat::decode`),
 //! then validation, then re-encoding. Any panic, hang or unbounded allocation is a bug; so is
 //! a decoded request that does not survive its own round trip.
 #![no_main]
@@ -18,7 +18,11 @@ fn all_finite(r: &PlanRequest) -> bool {
         r.ego.v_mps,
         r.ego.desired_speed_mps,
     ];
-    values.extend(r.svs.iter().flat_map(|s| [s.x_m, s.y_m, s.v_mps, s.a_mps2]));
+    values.extend(
+        r.svs
+            .iter()
+            .flat_map(|s| [s.x_m, s.y_m, s.v_mps, s.a_mps2, s.vy_mps, s.length_m, s.width_m]),
+    );
     values.extend(r.memory.corrective.iter().flat_map(|c| [c.release_m, c.trigger_m]));
     values.iter().all(|v| v.is_finite())
 }

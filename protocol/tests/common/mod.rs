@@ -56,12 +56,34 @@ pub fn ego() -> impl Strategy<Value = EgoState> {
 }
 
 pub fn sv() -> impl Strategy<Value = SvObservation> {
-    (any::<u32>(), finite(), finite(), finite(), finite()).prop_map(|(id, x_m, y_m, v_mps, a_mps2)| SvObservation {
-        id,
-        x_m,
-        y_m,
-        v_mps,
-        a_mps2,
+    (
+        any::<u32>(),
+        finite(),
+        finite(),
+        finite(),
+        finite(),
+        finite(),
+        finite(),
+        finite(),
+    )
+        .prop_map(
+            |(id, x_m, y_m, v_mps, a_mps2, vy_mps, length_m, width_m)| SvObservation {
+                id,
+                x_m,
+                y_m,
+                v_mps,
+                a_mps2,
+                vy_mps,
+                length_m,
+                width_m,
+            },
+        )
+}
+
+pub fn setpoint() -> impl Strategy<Value = SetPoint> {
+    (finite(), finite()).prop_map(|(accel_mps2, target_speed_mps)| SetPoint {
+        accel_mps2,
+        target_speed_mps,
     })
 }
 
@@ -127,11 +149,14 @@ pub fn response() -> impl Strategy<Value = PlanResponse> {
     let decided = (
         action(),
         maneuver(),
+        setpoint(),
         vec(plan_step(), 0..=MAX_HORIZON),
         layer(),
         memory(),
     )
-        .prop_map(|(a, m, plan, layer, memory)| Outcome::decided(Decided::new(a, m, list(plan), layer, memory)));
+        .prop_map(|(a, m, sp, plan, layer, memory)| {
+            Outcome::decided(Decided::new(a, m, sp, list(plan), layer, memory))
+        });
     let rejected = (reason(), field_name()).prop_map(|(r, f)| Outcome::rejected(Rejected::new(r, &f)));
     (
         any::<u64>(),
@@ -167,11 +192,9 @@ pub fn example_request() -> PlanRequest {
     let mut r = PlanRequest::new(7, 42, 1_000_000_000, road, ego);
     r.svs
         .push(SvObservation {
-            id: 1,
-            x_m: 30.0,
-            y_m: 3.5,
-            v_mps: 20.0,
-            a_mps2: -0.5,
+            vy_mps: 0.25,
+            length_m: 4.5,
+            ..SvObservation::new(1, 30.0, 3.5, 20.0, -0.5)
         })
         .unwrap();
     r.memory
@@ -224,7 +247,17 @@ pub fn example_response() -> PlanResponse {
             },
         ]),
     };
-    PlanResponse::decided(7, 42, Decided::new(keep, m, plan, Layer::Nominal, memory), 1850, 12)
+    let setpoint = SetPoint {
+        accel_mps2: 0.0,
+        target_speed_mps: 25.0,
+    };
+    PlanResponse::decided(
+        7,
+        42,
+        Decided::new(keep, m, setpoint, plan, Layer::Nominal, memory),
+        1850,
+        12,
+    )
 }
 
 /// The rejection documented in docs/protocol.md.

@@ -4,44 +4,9 @@
 use std::time::Instant;
 
 use decision::corpus::{agree, paper_classes, SituationGenerator, TrafficClass};
-use decision::{Backend, DecisionError, Layer, Planner, PlannerConfig};
+use decision::{Backend, DecisionError, Planner, PlannerConfig};
 use serde::Serialize;
-
-/// Percentiles of one backend's decision times, microseconds.
-#[derive(Debug, Clone, Serialize)]
-pub struct Timing {
-    pub solved: usize,
-    pub mean_us: f64,
-    pub p50_us: u64,
-    pub p99_us: u64,
-    pub max_us: u64,
-}
-
-impl Timing {
-    /// Exact percentiles (nearest rank) of the samples.
-    pub fn of(samples: &[u64]) -> Timing {
-        let mut s = samples.to_vec();
-        s.sort_unstable();
-        let rank = |q: f64| -> u64 {
-            if s.is_empty() {
-                return 0;
-            }
-            let idx = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1;
-            s[idx]
-        };
-        Timing {
-            solved: s.len(),
-            mean_us: if s.is_empty() {
-                0.0
-            } else {
-                s.iter().sum::<u64>() as f64 / s.len() as f64
-            },
-            p50_us: rank(0.50),
-            p99_us: rank(0.99),
-            max_us: s.last().copied().unwrap_or(0),
-        }
-    }
-}
+use stats::{LayerCounts, Percentiles};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Agreement {
@@ -52,26 +17,20 @@ pub struct Agreement {
     pub examples: Vec<String>,
 }
 
-#[derive(Debug, Clone, Serialize, Default)]
-pub struct LayerCounts {
-    pub nominal: usize,
-    pub global_relaxation: usize,
-    pub fallback: usize,
-}
-
 #[derive(Debug, Clone, Serialize)]
 pub struct ClassReport {
     pub class: TrafficClass,
-    pub milp: Timing,
-    pub enumeration: Timing,
+    pub milp: Percentiles,
+    pub enumeration: Percentiles,
     pub agreement_rate: f64,
     pub layers: LayerCounts,
 }
 
+/// Decision times per backend, µs (exact, nearest rank).
 #[derive(Debug, Clone, Serialize)]
 pub struct Backends {
-    pub milp: Timing,
-    pub enumeration: Timing,
+    pub milp: Percentiles,
+    pub enumeration: Percentiles,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -84,6 +43,15 @@ pub struct BenchReport {
     /// The class the targets are set on: 4 lanes, 10 SVs, highway (Table I row 18).
     pub target_class: ClassReport,
     pub classes: Vec<ClassReport>,
+}
+
+/// The share of `agreed` among `checked` (1 when nothing was checked).
+fn rate(agreed: usize, checked: usize) -> f64 {
+    if checked == 0 {
+        1.0
+    } else {
+        agreed as f64 / checked as f64
+    }
 }
 
 /// Run the benchmark.
@@ -123,11 +91,7 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
                 let b = timed(&mut oracle, &mut t_oracle)?;
                 (timed(&mut milp, &mut t_milp)?, b)
             };
-            match a.layer {
-                Layer::Nominal => layers.nominal += 1,
-                Layer::GlobalRelaxation => layers.global_relaxation += 1,
-                Layer::Fallback => layers.fallback += 1,
-            }
+            layers.add(a.layer.into());
             match agree(config, &situation, &a, &b) {
                 Ok(()) => agreed += 1,
                 Err(why) if agreement.examples.len() < 5 => {
@@ -142,21 +106,13 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
         all_oracle.extend_from_slice(&t_oracle);
         classes.push(ClassReport {
             class,
-            milp: Timing::of(&t_milp),
-            enumeration: Timing::of(&t_oracle),
-            agreement_rate: if per_class == 0 {
-                1.0
-            } else {
-                agreed as f64 / per_class as f64
-            },
+            milp: Percentiles::of_samples(&mut t_milp),
+            enumeration: Percentiles::of_samples(&mut t_oracle),
+            agreement_rate: rate(agreed, per_class),
             layers,
         });
     }
-    agreement.rate = if agreement.checked == 0 {
-        1.0
-    } else {
-        agreement.agreed as f64 / agreement.checked as f64
-    };
+    agreement.rate = rate(agreement.agreed, agreement.checked);
     let target_class = classes
         .iter()
         .find(|c| c.class.lanes == 4 && c.class.svs == 10 && c.class.is_highway())
@@ -167,8 +123,8 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
         per_class,
         situations: agreement.checked,
         backends: Backends {
-            milp: Timing::of(&all_milp),
-            enumeration: Timing::of(&all_oracle),
+            milp: Percentiles::of_samples(&mut all_milp),
+            enumeration: Percentiles::of_samples(&mut all_oracle),
         },
         agreement,
         target_class,
@@ -181,21 +137,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn nearest_rank_percentiles() {
-        let samples: Vec<u64> = (1..=100).rev().collect();
-        let t = Timing::of(&samples);
-        assert_eq!((t.p50_us, t.p99_us, t.max_us, t.solved), (50, 99, 100, 100));
-        assert!((t.mean_us - 50.5).abs() < 1e-12);
-        assert_eq!(Timing::of(&[]).max_us, 0);
-    }
-
-    #[test]
     fn small_bench_agrees_everywhere() {
         let r = run(&PlannerConfig::default(), 3, 5).unwrap();
         assert_eq!(r.situations, 54);
         assert_eq!(r.classes.len(), 18);
         assert_eq!(r.agreement.rate, 1.0, "{:?}", r.agreement.examples);
-        assert_eq!(r.backends.milp.solved, 54);
+        assert_eq!(r.backends.milp.count, 54);
         assert_eq!(r.target_class.class.id, 18);
     }
 }

@@ -6,14 +6,14 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
-use iceoryx2_transport::{ServerOptions, TransportError};
+use transport::iceoryx2::{ServerOptions, TransportError};
 
 use crate::service::Service;
 
 /// Serves `service` over iceoryx2 until `shutdown` is set. Blocks the calling thread (the
 /// iceoryx2 server port lives on it).
 pub fn serve(service: Arc<Service>, options: &ServerOptions, shutdown: &AtomicBool) -> Result<(), TransportError> {
-    iceoryx2_transport::serve(options, shutdown, |responder| {
+    transport::iceoryx2::serve(options, shutdown, |responder| {
         let arrival = Instant::now();
         let request = responder.request().clone();
         service.submit(

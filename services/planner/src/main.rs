@@ -1,10 +1,17 @@
 //! `planner`: the decision service's command-line entry point.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use decision::PlannerConfig;
+use planner::service::{Service, ServiceConfig, QUEUE_PER_WORKER};
+use tokio::sync::oneshot;
+use transport::iceoryx2::{ServerOptions, WaitMode};
 
 #[derive(Parser)]
 #[command(name = "planner", version, about = "HMDP-MPC decision planner")]
@@ -52,6 +59,14 @@ struct ServeArgs {
     /// iceoryx2 clients (vehicles) that may be connected at once.
     #[arg(long, default_value_t = 64, requires = "iceoryx2")]
     iceoryx2_max_clients: usize,
+    /// Latency mode: the iceoryx2 server thread spins (busy polls) for requests instead of
+    /// sleeping on the request event, going back to the event after `--busy-poll-window`
+    /// without a request. Costs a core while vehicles send.
+    #[arg(long, requires = "iceoryx2")]
+    busy_poll: bool,
+    /// How long the server keeps spinning after the last request, e.g. `500ms`.
+    #[arg(long, value_parser = humantime::parse_duration, default_value = "1s", requires = "busy_poll")]
+    busy_poll_window: std::time::Duration,
     /// Zenoh configuration file (JSON5, as zenohd's), e.g. deploy/zenoh/planner.json5;
     /// --zenoh-listen / --zenoh-connect replace its endpoints.
     #[arg(long, value_name = "FILE")]
@@ -74,28 +89,8 @@ struct ServeArgs {
     inject_solve_delay_ms: u64,
 }
 
-fn serve(args: ServeArgs) -> Result<()> {
-    use planner::service::{Service, ServiceConfig, QUEUE_PER_WORKER};
-    use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
-    use std::time::Duration;
-
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn")),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: journald and log files get plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
-    let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
-    if !zenoh_wanted && !args.iceoryx2 {
-        anyhow::bail!(
-            "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
-        );
-    }
-    let planner_config = load_config(args.config.as_ref())?;
+/// The service core's settings from the command line.
+fn service_config(args: &ServeArgs) -> ServiceConfig {
     let mut config = ServiceConfig::default();
     if let Some(w) = args.workers {
         config.workers = w.max(1);
@@ -105,11 +100,104 @@ fn serve(args: ServeArgs) -> Result<()> {
         config.queue_capacity = q.max(1);
     }
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
+    config
+}
+
+/// The iceoryx2 server's settings from the command line.
+fn iceoryx2_options(args: &ServeArgs) -> ServerOptions {
+    ServerOptions {
+        prefix: args.iceoryx2_prefix.clone(),
+        max_clients: args.iceoryx2_max_clients,
+        wait: if args.busy_poll {
+            WaitMode::BusyPoll {
+                window: args.busy_poll_window,
+            }
+        } else {
+            WaitMode::Event
+        },
+        ..Default::default()
+    }
+}
+
+/// The iceoryx2 front end on a thread of its own (its ports stay there) until `stop`; the
+/// receiver resolves when it ends.
+fn spawn_iceoryx2(
+    service: Arc<Service>,
+    options: ServerOptions,
+    stop: Arc<AtomicBool>,
+) -> Result<(JoinHandle<()>, oneshot::Receiver<Result<()>>)> {
+    let (done_tx, done) = oneshot::channel::<Result<()>>();
+    let thread = std::thread::Builder::new()
+        .name("iceoryx2-server".into())
+        .spawn(move || {
+            let result = planner::iceoryx2_front::serve(service, &options, &stop).map_err(anyhow::Error::from);
+            let _ = done_tx.send(result);
+        })?;
+    Ok((thread, done))
+}
+
+/// Runs the Zenoh front end (if configured) until a signal, or until a front end stops by
+/// itself (which is an error: systemd then restarts the planner).
+async fn run_until_stopped(
+    service: Arc<Service>,
+    zenoh_config: Option<zenoh::Config>,
+    iceoryx2_done: Option<oneshot::Receiver<Result<()>>>,
+) -> Result<()> {
+    let (shutdown_tx, shutdown_rx) = oneshot::channel::<()>();
+    let mut zenoh_task = zenoh_config.map(|cfg| {
+        tokio::spawn(planner::zenoh_front::serve(service, cfg, async move {
+            let _ = shutdown_rx.await;
+        }))
+    });
+    let iceoryx2_ended = async {
+        match iceoryx2_done {
+            Some(done) => done.await.unwrap_or(Ok(())),
+            // No iceoryx2 front: never ends by itself.
+            None => std::future::pending().await,
+        }
+    };
+    let zenoh_ended = async {
+        match zenoh_task.as_mut() {
+            Some(task) => task.await,
+            None => std::future::pending().await,
+        }
+    };
+    let outcome = tokio::select! {
+        _ = supervise::termination_signal() => Ok(()),
+        ended = iceoryx2_ended => match ended {
+            Ok(()) => Err(anyhow::anyhow!("the iceoryx2 front end stopped")),
+            Err(e) => Err(e.context("iceoryx2 front end")),
+        },
+        ended = zenoh_ended => match ended {
+            Ok(Ok(())) => Err(anyhow::anyhow!("the zenoh front end stopped")),
+            Ok(Err(e)) => Err(e.context("zenoh front end")),
+            Err(e) => Err(anyhow::anyhow!("the zenoh front end failed: {e}")),
+        },
+    };
+    let _ = shutdown_tx.send(());
+    if let Some(task) = zenoh_task {
+        if !task.is_finished() {
+            let _ = task.await;
+        }
+    }
+    outcome
+}
+
+fn serve(args: ServeArgs) -> Result<()> {
+    let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
+    if !zenoh_wanted && !args.iceoryx2 {
+        anyhow::bail!(
+            "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
+        );
+    }
+    let planner_config = supervise::planner_config(args.config.as_deref())?;
+    let config = service_config(&args);
     if !config.inject_solve_delay.is_zero() {
         tracing::warn!(ms = args.inject_solve_delay_ms, "TEST ONLY: injected solve delay");
     }
     let zenoh_config = if zenoh_wanted {
-        Some(planner::zenoh_front::service_config(
+        Some(transport::zenoh::config(
+            transport::zenoh::Mode::Peer,
             args.zenoh_config.as_deref(),
             &args.zenoh_listen,
             &args.zenoh_connect,
@@ -128,72 +216,20 @@ fn serve(args: ServeArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("building the tokio runtime")?;
-    // The iceoryx2 ports stay on one thread of their own; if it ends (e.g. another planner
-    // already serves the prefix), the whole process stops.
+    // If the iceoryx2 thread ends (e.g. another planner already serves the prefix), the
+    // whole process stops.
     let stop_iceoryx2 = Arc::new(AtomicBool::new(false));
-    let (iceoryx2_done_tx, iceoryx2_done) = tokio::sync::oneshot::channel::<Result<()>>();
-    let iceoryx2_thread = if args.iceoryx2 {
-        let options = iceoryx2_transport::ServerOptions {
-            prefix: args.iceoryx2_prefix.clone(),
-            max_clients: args.iceoryx2_max_clients,
-            ..Default::default()
-        };
-        let service = Arc::clone(&service);
-        let stop = Arc::clone(&stop_iceoryx2);
-        Some(
-            std::thread::Builder::new()
-                .name("iceoryx2-server".into())
-                .spawn(move || {
-                    let result = planner::iceoryx2_front::serve(service, &options, &stop).map_err(anyhow::Error::from);
-                    let _ = iceoryx2_done_tx.send(result);
-                })?,
-        )
+    let (iceoryx2_thread, iceoryx2_done) = if args.iceoryx2 {
+        let (thread, done) = spawn_iceoryx2(
+            Arc::clone(&service),
+            iceoryx2_options(&args),
+            Arc::clone(&stop_iceoryx2),
+        )?;
+        (Some(thread), Some(done))
     } else {
-        drop(iceoryx2_done_tx);
-        None
+        (None, None)
     };
-    // Runs until a signal, or until a front end stops by itself (which is an error: systemd
-    // then restarts the planner).
-    let result = runtime.block_on(async {
-        let (shutdown_tx, shutdown_rx) = tokio::sync::oneshot::channel::<()>();
-        let mut zenoh_task = zenoh_config.map(|cfg| {
-            tokio::spawn(planner::zenoh_front::serve(Arc::clone(&service), cfg, async move {
-                let _ = shutdown_rx.await;
-            }))
-        });
-        let iceoryx2_ended = async {
-            match iceoryx2_done.await {
-                Ok(result) => result,
-                // No iceoryx2 front: never ends by itself.
-                Err(_) => std::future::pending().await,
-            }
-        };
-        let zenoh_ended = async {
-            match zenoh_task.as_mut() {
-                Some(task) => task.await,
-                None => std::future::pending().await,
-            }
-        };
-        let outcome = tokio::select! {
-            _ = termination_signal() => Ok(()),
-            ended = iceoryx2_ended => match ended {
-                Ok(()) => Err(anyhow::anyhow!("the iceoryx2 front end stopped")),
-                Err(e) => Err(e.context("iceoryx2 front end")),
-            },
-            ended = zenoh_ended => match ended {
-                Ok(Ok(())) => Err(anyhow::anyhow!("the zenoh front end stopped")),
-                Ok(Err(e)) => Err(e.context("zenoh front end")),
-                Err(e) => Err(anyhow::anyhow!("the zenoh front end failed: {e}")),
-            },
-        };
-        let _ = shutdown_tx.send(());
-        if let Some(task) = zenoh_task {
-            if !task.is_finished() {
-                let _ = task.await;
-            }
-        }
-        outcome
-    });
+    let result = runtime.block_on(run_until_stopped(Arc::clone(&service), zenoh_config, iceoryx2_done));
     stop_iceoryx2.store(true, Ordering::Relaxed);
     if let Some(t) = iceoryx2_thread {
         let _ = t.join();
@@ -208,40 +244,12 @@ fn serve(args: ServeArgs) -> Result<()> {
     result
 }
 
-/// Resolves on SIGINT or SIGTERM.
-async fn termination_signal() {
-    let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::warn!("cannot watch SIGTERM: {e}");
-            let _ = tokio::signal::ctrl_c().await;
-            return;
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = term.recv() => {}
-    }
-}
-
-fn load_config(path: Option<&PathBuf>) -> Result<PlannerConfig> {
-    match path {
-        None => Ok(PlannerConfig::default()),
-        Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            PlannerConfig::from_toml_str(&text).with_context(|| format!("parsing {}", p.display()))
-        }
-    }
-}
-
 fn main() -> Result<()> {
-    // Die quietly on a closed stdout (`... | head`), as command-line tools do, instead of
-    // panicking in `println!`. SAFETY: resets a disposition before any thread exists.
-    #[cfg(unix)]
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL)
-    };
     let cli = Cli::parse();
+    supervise::init_process(match cli.command {
+        Command::Serve(_) => "info,zenoh=warn",
+        _ => "warn",
+    });
     match cli.command {
         Command::Bench {
             json,
@@ -249,7 +257,7 @@ fn main() -> Result<()> {
             seed,
             config,
         } => {
-            let config = load_config(config.as_ref())?;
+            let config = supervise::planner_config(config.as_deref())?;
             let report = planner::bench::run(&config, per_class, seed)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report)?);

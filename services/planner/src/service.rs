@@ -6,7 +6,7 @@
 //!   malformed input, rejected input and overload), never blocks the caller.
 //! * Each worker thread owns a [`decision::Planner`] (not `Send`: built on its thread).
 //! * The watchdog thread answers `decision::fallback_only` marked
-//!   [`Layer::WatchdogFallback`] when a deadline runs out, interrupts the running HiGHS solve
+//!   [`protocol::Layer::WatchdogFallback`] when a deadline runs out, interrupts the running HiGHS solve
 //!   and makes the worker discard its late result.
 
 use std::cmp::Reverse;
@@ -19,34 +19,9 @@ use std::time::{Duration, Instant};
 
 use decision::{InterruptHandle, Planner, PlannerConfig};
 use hdrhistogram::Histogram;
-use protocol::{
-    decode_bincode, decode_json, encode_bincode, encode_json, Layer, PlanRequest, PlanResponse, RejectReason, Rejected,
-    WireError, DEFAULT_DEADLINE,
-};
+use protocol::{PlanRequest, PlanResponse, WireFormat, DEFAULT_DEADLINE};
 use serde::Serialize;
-
-/// How a request body is encoded (chosen by the transport's encoding field).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WireFormat {
-    Bincode,
-    Json,
-}
-
-impl WireFormat {
-    pub fn decode(self, bytes: &[u8]) -> Result<PlanRequest, WireError> {
-        match self {
-            WireFormat::Bincode => decode_bincode(bytes),
-            WireFormat::Json => decode_json(bytes),
-        }
-    }
-
-    pub fn encode(self, response: &PlanResponse) -> Vec<u8> {
-        match self {
-            WireFormat::Bincode => encode_bincode(response),
-            WireFormat::Json => encode_json(response).into_bytes(),
-        }
-    }
-}
+use stats::{LayerCounts, Percentiles};
 
 /// Default queue places per worker. Solves take about a millisecond (p99 ~2 ms), so a full
 /// queue still drains well inside the 400 ms deadline, while bursts of simultaneous requests
@@ -105,19 +80,16 @@ impl JobState {
     }
 }
 
-/// Counters by answering layer and latency histograms.
+/// Counters of the service apart from the answers by layer.
 #[derive(Default)]
 struct Counters {
-    nominal: u64,
-    global_relaxation: u64,
-    fallback: u64,
-    watchdog_fallback: u64,
-    rejected: u64,
+    probes: u64,
     overloaded: u64,
     late_discarded: u64,
 }
 
 struct StatsInner {
+    by_layer: LayerCounts,
     counters: Counters,
     /// Arrival to answer, µs.
     latency: Histogram<u64>,
@@ -131,44 +103,15 @@ pub struct Stats {
     inner: Mutex<StatsInner>,
 }
 
-/// Percentiles of a histogram, µs.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Percentiles {
-    pub count: u64,
-    pub p50_us: u64,
-    pub p90_us: u64,
-    pub p99_us: u64,
-    pub max_us: u64,
-}
-
-impl Percentiles {
-    fn of(h: &Histogram<u64>) -> Self {
-        Self {
-            count: h.len(),
-            p50_us: h.value_at_quantile(0.5),
-            p90_us: h.value_at_quantile(0.9),
-            p99_us: h.value_at_quantile(0.99),
-            max_us: h.max(),
-        }
-    }
-}
-
-/// Answers by layer (rejections and overload answers counted apart).
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct LayerCounts {
-    pub nominal: u64,
-    pub global_relaxation: u64,
-    pub fallback: u64,
-    pub watchdog_fallback: u64,
-    pub rejected: u64,
-}
-
 /// The JSON statistics document (published on `hmdp/planner/stats`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct StatsSnapshot {
     pub uptime_s: f64,
+    /// Answers to requests (probes excluded).
     pub answered: u64,
     pub by_layer: LayerCounts,
+    /// Readiness probes answered (not counted in `answered` nor as rejections).
+    pub probes: u64,
     /// Fallback answers given because the queue was full (also counted in `watchdog_fallback`).
     pub overloaded: u64,
     /// Worker results that arrived after the watchdog had answered.
@@ -181,13 +124,13 @@ pub struct StatsSnapshot {
 
 impl Stats {
     fn new() -> Self {
-        let hist = || Histogram::new_with_bounds(1, 60_000_000, 3).unwrap_or_else(|_| Histogram::new(3).unwrap());
         Self {
             started: Instant::now(),
             inner: Mutex::new(StatsInner {
+                by_layer: LayerCounts::default(),
                 counters: Counters::default(),
-                latency: hist(),
-                solve: hist(),
+                latency: stats::histogram(),
+                solve: stats::histogram(),
             }),
         }
     }
@@ -198,39 +141,26 @@ impl Stats {
 
     fn record_answer(&self, response: &PlanResponse, arrival: Instant) {
         let mut s = self.lock();
-        match response.outcome.as_decided().and_then(|d| d.layer().ok()) {
-            Some(Layer::Nominal) => s.counters.nominal += 1,
-            Some(Layer::GlobalRelaxation) => s.counters.global_relaxation += 1,
-            Some(Layer::Fallback) => s.counters.fallback += 1,
-            Some(Layer::WatchdogFallback) => s.counters.watchdog_fallback += 1,
-            None => s.counters.rejected += 1,
-        }
-        let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX).max(1);
-        s.latency.saturating_record(us);
+        s.by_layer.add_response(response);
+        stats::record(&mut s.latency, arrival.elapsed());
     }
 
-    fn record_solve(&self, us: u64) {
-        self.lock().solve.saturating_record(us.max(1));
+    fn record_solve(&self, took: Duration) {
+        stats::record(&mut self.lock().solve, took);
     }
 
     /// The current statistics.
     pub fn snapshot(&self) -> StatsSnapshot {
         let s = self.lock();
-        let c = &s.counters;
         StatsSnapshot {
             uptime_s: self.started.elapsed().as_secs_f64(),
-            answered: c.nominal + c.global_relaxation + c.fallback + c.watchdog_fallback + c.rejected,
-            by_layer: LayerCounts {
-                nominal: c.nominal,
-                global_relaxation: c.global_relaxation,
-                fallback: c.fallback,
-                watchdog_fallback: c.watchdog_fallback,
-                rejected: c.rejected,
-            },
-            overloaded: c.overloaded,
-            late_discarded: c.late_discarded,
-            latency: Percentiles::of(&s.latency),
-            solve: Percentiles::of(&s.solve),
+            answered: s.by_layer.total(),
+            by_layer: s.by_layer,
+            probes: s.counters.probes,
+            overloaded: s.counters.overloaded,
+            late_discarded: s.counters.late_discarded,
+            latency: Percentiles::of_histogram(&s.latency),
+            solve: Percentiles::of_histogram(&s.solve),
         }
     }
 }
@@ -301,31 +231,22 @@ impl Service {
     }
 
     /// Decodes `bytes` and submits the request; undecodable bytes are answered at once with a
-    /// `malformed` / `unsupported_version` / `capacity_exceeded` rejection.
+    /// `malformed` / `unsupported_version` / `capacity_exceeded` rejection (the empty message,
+    /// a readiness probe, is not counted as one).
     pub fn handle_bytes(&self, bytes: &[u8], format: WireFormat, arrival: Instant, reply: Reply) {
-        match format.decode(bytes) {
+        match format.decode_request(bytes) {
             Ok(request) => self.submit(request, arrival, reply),
-            Err(e) => {
-                let (vehicle_id, sequence) = peek_ids(bytes, format);
-                let rejected = match &e {
-                    WireError::UnsupportedVersion { .. } => Rejected::new(RejectReason::UnsupportedVersion, "version"),
-                    WireError::CapacityExceeded(_) => Rejected::new(
-                        RejectReason::CapacityExceeded,
-                        protocol::request_over_capacity_field(bytes, format == WireFormat::Json).unwrap_or(""),
-                    ),
-                    _ => Rejected::new(RejectReason::Malformed, ""),
-                };
+            Err((rejected, (vehicle_id, sequence), e)) => {
                 tracing::debug!(error = %e, "undecodable request");
                 let response = PlanResponse::rejected(vehicle_id, sequence, rejected, micros(arrival.elapsed()));
-                self.stats.record_answer(&response, arrival);
-                reply(response);
+                self.answer_now(response, arrival, bytes.is_empty(), reply);
             }
         }
     }
 
     /// Submits a decoded request. The reply is called exactly once.
     pub fn submit(&self, request: PlanRequest, arrival: Instant, reply: Reply) {
-        // Wire-level checks the decoder does not make (enum ranges, ...).
+        // Wire-level checks the decoder does not make (enum ranges, ...); a probe fails them.
         if let Err(rejected) = request.validate() {
             let response = PlanResponse::rejected(
                 request.vehicle_id,
@@ -333,8 +254,7 @@ impl Service {
                 rejected,
                 micros(arrival.elapsed()),
             );
-            self.stats.record_answer(&response, arrival);
-            reply(response);
+            self.answer_now(response, arrival, request.is_probe(), reply);
             return;
         }
         let deadline = arrival + request.deadline().min(self.config.max_deadline);
@@ -364,6 +284,16 @@ impl Service {
         }
     }
 
+    /// Answers at once, counting the answer unless it answers a probe.
+    fn answer_now(&self, response: PlanResponse, arrival: Instant, probe: bool, reply: Reply) {
+        if probe {
+            self.stats.lock().counters.probes += 1;
+        } else {
+            self.stats.record_answer(&response, arrival);
+        }
+        reply(response);
+    }
+
     /// Stops accepting work and joins the threads (queued jobs are still answered).
     pub fn shutdown(&mut self) {
         self.queue = None;
@@ -380,55 +310,16 @@ impl Drop for Service {
     }
 }
 
-/// Vehicle id and sequence of an undecodable message, when they can be read.
-fn peek_ids(bytes: &[u8], format: WireFormat) -> (u64, u64) {
-    match format {
-        WireFormat::Bincode if bytes.len() >= 18 => {
-            let id = u64::from_le_bytes(bytes[2..10].try_into().unwrap_or([0; 8]));
-            let seq = u64::from_le_bytes(bytes[10..18].try_into().unwrap_or([0; 8]));
-            (id, seq)
-        }
-        WireFormat::Json if bytes.len() > protocol::MAX_MESSAGE_BYTES => (0, 0),
-        WireFormat::Json => match serde_json::from_slice::<serde_json::Value>(bytes) {
-            Ok(v) => (
-                v.get("vehicle_id").and_then(|x| x.as_u64()).unwrap_or(0),
-                v.get("sequence").and_then(|x| x.as_u64()).unwrap_or(0),
-            ),
-            Err(_) => (0, 0),
-        },
-        _ => (0, 0),
-    }
-}
-
 /// Answers `job` with the fallback marked `WatchdogFallback`, if nobody answered yet.
 fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats) -> bool {
     let Some(reply) = job.take_reply() else {
         return false;
     };
-    let request = &job.request;
-    let queue_us = micros(job.arrival.elapsed());
-    let response = match decision::fallback_only(config, &request.to_situation()) {
-        Ok(decision) => match protocol::Decided::try_from(&decision) {
-            Ok(mut decided) => {
-                decided.set_layer(Layer::WatchdogFallback);
-                PlanResponse::decided(request.vehicle_id, request.sequence, decided, 0, queue_us)
-            }
-            Err(_) => rejected_internal(request, queue_us),
-        },
-        Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(&e), queue_us),
-    };
+    let mut response = protocol::fallback_answer(config, &job.request);
+    response.queue_us = micros(job.arrival.elapsed());
     stats.record_answer(&response, job.arrival);
     reply(response);
     true
-}
-
-fn rejected_internal(request: &PlanRequest, queue_us: u32) -> PlanResponse {
-    PlanResponse::rejected(
-        request.vehicle_id,
-        request.sequence,
-        Rejected::new(RejectReason::InternalError, "solver"),
-        queue_us,
-    )
 }
 
 fn worker(
@@ -476,15 +367,10 @@ fn worker(
             }
         }
         let queue_us = micros(started.duration_since(job.arrival));
-        let result = planner.decide(&job.request.to_situation());
+        let mut response = protocol::answer(&mut planner, &job.request);
+        response.queue_us = queue_us;
         *job.solving.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        stats.record_solve(u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX));
-        let request = &job.request;
-        let response = match &result {
-            Ok(decision) => PlanResponse::from_decision(request, decision, queue_us)
-                .unwrap_or_else(|_| rejected_internal(request, queue_us)),
-            Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(e), queue_us),
-        };
+        stats.record_solve(started.elapsed());
         match job.take_reply() {
             Some(reply) => {
                 stats.record_answer(&response, job.arrival);

@@ -10,60 +10,14 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use protocol::{ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY, ZENOH_STATS_KEY};
+use protocol::{WireFormat, ZENOH_PLAN_KEY, ZENOH_STATS_KEY};
 use tokio::sync::mpsc;
+use transport::zenoh::{encoding, format_of};
 use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 use zenoh::Config;
 
-use crate::service::{Service, WireFormat};
-
-/// A Zenoh peer configuration with explicit endpoints and no scouting (multicast and gossip
-/// off): sessions find each other only through `listen` / `connect`.
-pub fn peer_config(listen: &[String], connect: &[String]) -> Result<Config> {
-    let json = serde_json::json!({
-        "mode": "peer",
-        "listen": { "endpoints": listen },
-        "connect": { "endpoints": connect },
-        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
-    });
-    Config::from_json5(&json.to_string()).map_err(|e| anyhow!("zenoh configuration: {e}"))
-}
-
-/// The service's Zenoh configuration: the file when given (any zenohd-style JSON5 file,
-/// e.g. `deploy/zenoh/planner.json5`), else a peer with scouting off; `listen` / `connect`
-/// endpoints given on the command line replace the file's.
-pub fn service_config(file: Option<&std::path::Path>, listen: &[String], connect: &[String]) -> Result<Config> {
-    let Some(path) = file else {
-        return peer_config(listen, connect);
-    };
-    let mut config = Config::from_file(path).map_err(|e| anyhow!("zenoh configuration {}: {e}", path.display()))?;
-    for (key, endpoints) in [("listen/endpoints", listen), ("connect/endpoints", connect)] {
-        if !endpoints.is_empty() {
-            let json = serde_json::to_string(endpoints)?;
-            config
-                .insert_json5(key, &json)
-                .map_err(|e| anyhow!("zenoh configuration {key}: {e}"))?;
-        }
-    }
-    Ok(config)
-}
-
-/// The wire format a query asks for: JSON if its encoding is `application/json`, else
-/// bincode.
-pub fn format_of(encoding: Option<&Encoding>) -> WireFormat {
-    match encoding {
-        Some(e) if e.to_string().starts_with(ENCODING_JSON) => WireFormat::Json,
-        _ => WireFormat::Bincode,
-    }
-}
-
-fn encoding_of(format: WireFormat) -> Encoding {
-    match format {
-        WireFormat::Json => Encoding::APPLICATION_JSON,
-        WireFormat::Bincode => Encoding::from(ENCODING_BINCODE),
-    }
-}
+use crate::service::Service;
 
 /// Serves `service` over Zenoh until `shutdown` resolves. Must run inside a multi-thread
 /// tokio runtime.
@@ -100,7 +54,7 @@ pub async fn serve(
     let responder = tokio::spawn(async move {
         while let Some((query, body, format)) = reply_rx.recv().await {
             let key = query.key_expr().clone();
-            if let Err(e) = query.reply(key, body).encoding(encoding_of(format)).await {
+            if let Err(e) = query.reply(key, body).encoding(encoding(format)).await {
                 tracing::warn!("reply failed: {e}");
             }
         }

@@ -5,7 +5,6 @@
 //! workspace alone; in production the real `zenohd` runs with the same configuration files.
 //! It has no plugins (no REST, no storages): routing, TLS and access control only.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -53,30 +52,16 @@ fn load_config(args: &Args) -> Result<zenoh::Config> {
     Ok(config)
 }
 
-/// Resolves on the first SIGINT or SIGTERM (systemd stops services with SIGTERM).
-async fn shutdown_signal() -> Result<()> {
-    use tokio::signal::unix::{signal, SignalKind};
-    let mut term = signal(SignalKind::terminate()).context("watching SIGTERM")?;
-    let mut int = signal(SignalKind::interrupt()).context("watching SIGINT")?;
-    tokio::select! {
-        _ = term.recv() => tracing::info!("SIGTERM"),
-        _ = int.recv() => tracing::info!("SIGINT"),
-    }
-    Ok(())
-}
-
 async fn run(config: zenoh::Config) -> Result<()> {
     let listen = config.get_json("listen/endpoints").unwrap_or_default();
     // Watch the signals before opening: a stop request during startup must not be lost.
-    let shutdown = tokio::spawn(shutdown_signal());
+    let shutdown = tokio::spawn(supervise::termination_signal());
     let session = zenoh::open(config)
         .await
         .map_err(|e| anyhow!("opening the zenoh router: {e}"))?;
     tracing::info!(zid = %session.zid(), listen = %listen, "router running");
-    match shutdown.await {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => tracing::warn!("{e:#}; stopping"),
-        Err(e) => tracing::warn!("signal task failed: {e}; stopping"),
+    if let Err(e) = shutdown.await {
+        tracing::warn!("signal task failed: {e}; stopping");
     }
     tracing::info!("shutting down");
     session
@@ -89,17 +74,7 @@ async fn run(config: zenoh::Config) -> Result<()> {
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn")),
-        )
-        .with_writer(std::io::stderr)
-        // Colours only on a terminal: journald and log files get plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        // No colour codes in journald or log files.
-        .with_ansi(std::io::stderr().is_terminal())
-        .init();
+    supervise::init_process("info,zenoh=warn");
     let config = load_config(&args)?;
     // Zenoh needs a multi-thread runtime (its own tasks block in places).
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -2,16 +2,18 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::server::Server;
 use protocol::{
     PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
     ICEORYX2_PLAN_SERVICE,
 };
 
-use crate::{node, service_name, setup, Ipc, TransportError};
+use super::{node, send, service_name, setup, Ipc, TransportError};
 
 /// Settings of the planner's iceoryx2 endpoint.
 #[derive(Debug, Clone)]
@@ -22,6 +24,20 @@ pub struct ServerOptions {
     pub max_clients: usize,
     /// How often the server thread looks at the shutdown flag while no request arrives.
     pub shutdown_poll: Duration,
+    /// How the server thread waits for requests.
+    pub wait: WaitMode,
+}
+
+/// How a thread waits for what the other side sends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WaitMode {
+    /// Sleep on the event until notified: no CPU while idle, a wake-up's latency per message.
+    #[default]
+    Event,
+    /// Spin (busy poll, yielding the core between polls) for up to `window` after the last
+    /// message before sleeping on the event again: lowest latency when a core is free, a core
+    /// busy while messages keep coming.
+    BusyPoll { window: Duration },
 }
 
 impl Default for ServerOptions {
@@ -30,6 +46,7 @@ impl Default for ServerOptions {
             prefix: None,
             max_clients: 64,
             shutdown_poll: Duration::from_millis(100),
+            wait: WaitMode::Event,
         }
     }
 }
@@ -55,28 +72,24 @@ impl Responder {
     /// client is gone (it died or stopped waiting).
     pub fn respond(self, response: PlanResponse) -> Result<(), TransportError> {
         let Responder { request, notifier } = self;
-        let slot = request
-            .loan_uninit()
-            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
-        slot.write_payload(response)
-            .send()
-            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        let slot = request.loan_uninit().map_err(send("loaning a response"))?;
+        slot.write_payload(response).send().map_err(send("response"))?;
         // Dropping the active request ends the response stream before the clients wake.
         drop(request);
-        notifier.notify().map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        notifier.notify().map_err(send("response event"))?;
         Ok(())
     }
 }
 
 /// Serves the planner service under `options` until `shutdown` is set: every request is
 /// handed to `handler` together with its [`Responder`]. Blocks the calling thread, which
-/// sleeps on the request event between requests.
+/// sleeps on the request event between requests (or spins, see [`WaitMode`]).
 pub fn serve(
     options: &ServerOptions,
     shutdown: &AtomicBool,
     mut handler: impl FnMut(Responder),
 ) -> Result<(), TransportError> {
-    let config = crate::config(options.prefix.as_deref())?;
+    let config = super::config(options.prefix.as_deref())?;
     let node = node(&config, "hmdp-planner")?;
     let max_clients = options.max_clients.max(1);
     let service = node
@@ -121,25 +134,48 @@ pub fn serve(
         .create()
         .map_err(setup("server port (is another planner serving this prefix?)"))?;
     tracing::info!(service = ICEORYX2_PLAN_SERVICE, "planner serving over iceoryx2");
+    receive_until(&server, &listener, &notifier, options, shutdown, &mut handler);
+    tracing::info!("iceoryx2 server stopped");
+    Ok(())
+}
+
+/// The server thread's loop: wait (or spin) for requests, hand each to `handler`.
+fn receive_until(
+    server: &Server<Ipc, PlanRequest, (), PlanResponse, ()>,
+    listener: &Listener<Ipc>,
+    notifier: &Arc<Notifier<Ipc>>,
+    options: &ServerOptions,
+    shutdown: &AtomicBool,
+    handler: &mut impl FnMut(Responder),
+) {
+    let mut last_request = Instant::now();
     while !shutdown.load(Ordering::Relaxed) {
-        if let Err(e) = listener.timed_wait(|_| {}, options.shutdown_poll) {
-            tracing::warn!("waiting for requests: {e:?}");
+        let spinning = match options.wait {
+            WaitMode::Event => false,
+            WaitMode::BusyPoll { window } => last_request.elapsed() < window,
+        };
+        if spinning {
+            // Yielding keeps the core for a runnable thread (a solver) when there is one.
+            std::thread::yield_now();
+        } else if let Err(e) = listener.timed_wait(|_| {}, options.shutdown_poll) {
+            tracing::warn!("waiting for requests: {e}");
             std::thread::sleep(options.shutdown_poll);
         }
         loop {
             match server.receive() {
-                Ok(Some(request)) => handler(Responder {
-                    request,
-                    notifier: Arc::clone(&notifier),
-                }),
+                Ok(Some(request)) => {
+                    last_request = Instant::now();
+                    handler(Responder {
+                        request,
+                        notifier: Arc::clone(notifier),
+                    })
+                }
                 Ok(None) => break,
                 Err(e) => {
-                    tracing::warn!("receiving a request: {e:?}");
+                    tracing::warn!("receiving a request: {e}");
                     break;
                 }
             }
         }
     }
-    tracing::info!("iceoryx2 server stopped");
-    Ok(())
 }

@@ -12,7 +12,7 @@ use protocol::{
     ICEORYX2_PLAN_SERVICE,
 };
 
-use crate::{node, service_name, setup, Ipc, TransportError};
+use super::{node, receive, send, service_name, setup, Ipc, TransportError, WaitMode};
 
 /// Settings of a [`Client`].
 #[derive(Debug, Clone)]
@@ -23,6 +23,8 @@ pub struct ClientOptions {
     pub ready_timeout: Duration,
     /// Node name (shows up in iceoryx2's tools), e.g. `hmdp-vehicle-7`.
     pub node_name: String,
+    /// How the client waits for its answer.
+    pub wait: WaitMode,
 }
 
 impl Default for ClientOptions {
@@ -31,6 +33,7 @@ impl Default for ClientOptions {
             prefix: None,
             ready_timeout: Duration::from_secs(30),
             node_name: format!("hmdp-vehicle-{}", std::process::id()),
+            wait: WaitMode::Event,
         }
     }
 }
@@ -58,13 +61,14 @@ pub struct Client {
     _plan_service: request_response::PortFactory<Ipc, PlanRequest, (), PlanResponse, ()>,
     _event_services: [event::PortFactory<Ipc>; 2],
     _node: Node<Ipc>,
+    wait: WaitMode,
 }
 
 impl Client {
     /// Opens the planner's services, waiting up to `options.ready_timeout` for a planner to
     /// create them.
     pub fn connect(options: &ClientOptions) -> Result<Self, TransportError> {
-        let config = crate::config(options.prefix.as_deref())?;
+        let config = super::config(options.prefix.as_deref())?;
         let node = node(&config, &options.node_name)?;
         let give_up = Instant::now() + options.ready_timeout;
         let service = loop {
@@ -75,7 +79,7 @@ impl Client {
             {
                 Ok(s) => break s,
                 Err(e) if Instant::now() >= give_up => {
-                    tracing::debug!("opening {ICEORYX2_PLAN_SERVICE}: {e:?}");
+                    tracing::debug!("opening {ICEORYX2_PLAN_SERVICE}: {e}");
                     return Err(TransportError::NoService {
                         service: ICEORYX2_PLAN_SERVICE,
                     });
@@ -88,7 +92,7 @@ impl Client {
                 match node.service_builder(&service_name(name)?).event().open() {
                     Ok(s) => return Ok(s),
                     Err(e) if Instant::now() >= give_up => {
-                        tracing::debug!("opening {name}: {e:?}");
+                        tracing::debug!("opening {name}: {e}");
                         return Err(TransportError::NoService { service: name });
                     }
                     Err(_) => std::thread::sleep(Duration::from_millis(50)),
@@ -113,6 +117,7 @@ impl Client {
             _plan_service: service,
             _event_services: [requests_event, responses_event],
             _node: node,
+            wait: options.wait,
         })
     }
 
@@ -120,55 +125,49 @@ impl Client {
     /// answer. A late answer to an earlier request is never taken for this one.
     pub fn request(&mut self, request: PlanRequest, wait: Duration) -> Result<Exchange, TransportError> {
         let deadline = Instant::now() + wait;
-        let slot = self
-            .port
-            .loan_uninit()
-            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
-        let pending = slot
-            .write_payload(request)
-            .send()
-            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        let slot = self.port.loan_uninit().map_err(send("loaning a request"))?;
+        let pending = slot.write_payload(request).send().map_err(send("request"))?;
         let servers = pending.number_of_server_connections();
+        let unanswered = Exchange {
+            response: None,
+            extra_responses: 0,
+            servers,
+        };
         if servers == 0 {
-            return Ok(Exchange {
-                response: None,
-                extra_responses: 0,
-                servers,
-            });
+            return Ok(unanswered);
         }
-        self.requests
-            .notify()
-            .map_err(|e| TransportError::Send(format!("{e:?}")))?;
+        self.requests.notify().map_err(send("request event"))?;
+        let spin_until = match self.wait {
+            WaitMode::Event => None,
+            WaitMode::BusyPoll { window } => Some(Instant::now() + window),
+        };
         loop {
-            match pending.receive() {
-                Ok(Some(first)) => {
-                    let response = first.payload().clone();
-                    drop(first);
-                    let mut extra_responses = 0;
-                    while let Ok(Some(_)) = pending.receive() {
-                        extra_responses += 1;
-                    }
-                    return Ok(Exchange {
-                        response: Some(response),
-                        extra_responses,
-                        servers,
-                    });
+            if let Some(first) = pending.receive().map_err(receive("response"))? {
+                let response = first.payload().clone();
+                drop(first);
+                let mut extra_responses = 0;
+                while let Ok(Some(_)) = pending.receive() {
+                    extra_responses += 1;
                 }
-                Ok(None) => {}
-                Err(e) => return Err(TransportError::Receive(format!("{e:?}"))),
-            }
-            let now = Instant::now();
-            if now >= deadline {
                 return Ok(Exchange {
-                    response: None,
-                    extra_responses: 0,
+                    response: Some(response),
+                    extra_responses,
                     servers,
                 });
             }
-            // Any answer wakes every client; the loop looks whether it was ours.
-            if let Err(e) = self.responses.timed_wait(|_| {}, deadline - now) {
-                return Err(TransportError::Receive(format!("{e:?}")));
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(unanswered);
             }
+            if spin_until.is_some_and(|until| now < until) {
+                // Yielding keeps the core for a runnable thread (a solver) when there is one.
+                std::thread::yield_now();
+                continue;
+            }
+            // Any answer wakes every client; the loop looks whether it was ours.
+            self.responses
+                .timed_wait(|_| {}, deadline - now)
+                .map_err(receive("response event"))?;
         }
     }
 }

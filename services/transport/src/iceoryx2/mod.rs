@@ -1,5 +1,4 @@
-//! The planner protocol over iceoryx2: zero-copy shared memory between processes on one
-//! machine.
+//! The protocol over iceoryx2: zero-copy shared memory between processes on one machine.
 //!
 //! * Data: the request-response service [`protocol::ICEORYX2_PLAN_SERVICE`] carrying
 //!   [`PlanRequest`] / [`PlanResponse`] in place (no serialisation).
@@ -14,11 +13,13 @@
 //! * Crashes: a process killed with SIGKILL leaves its node's shared memory behind; both sides
 //!   remove dead nodes' resources when they start (see [`dead_nodes`]).
 
+mod channel;
 mod client;
 mod server;
 
+pub use channel::Iceoryx2Channel;
 pub use client::{Client, ClientOptions, Exchange};
-pub use server::{serve, Responder, ServerOptions};
+pub use server::{serve, Responder, ServerOptions, WaitMode};
 
 pub use iceoryx2::config::Config as IceoryxConfig;
 use iceoryx2::config::Config;
@@ -28,31 +29,64 @@ use thiserror::Error;
 /// The iceoryx2 service variant of every port here.
 pub type Ipc = ipc_threadsafe::Service;
 
-/// Failures of the iceoryx2 transport. iceoryx2's own error types differ per call; their
-/// text is kept.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
+/// iceoryx2's own error of a failed call, kept as the source.
+pub type Cause = Box<dyn std::error::Error + Send + Sync>;
+
+/// Failures of the iceoryx2 transport; iceoryx2's own error (a different type per call) is
+/// the source.
+#[derive(Debug, Error)]
 pub enum TransportError {
-    /// The configuration (e.g. the prefix) is invalid.
-    #[error("iceoryx2 configuration: {0}")]
-    Config(String),
+    /// The prefix is not a valid file name.
+    #[error("iceoryx2 prefix `{prefix}` is not a valid file name")]
+    Prefix {
+        prefix: String,
+        #[source]
+        source: Cause,
+    },
     /// A node, service or port could not be created or opened.
-    #[error("iceoryx2 setup ({what}): {detail}")]
-    Setup { what: &'static str, detail: String },
+    #[error("iceoryx2 setup ({what})")]
+    Setup {
+        what: &'static str,
+        #[source]
+        source: Cause,
+    },
     /// The planner's service does not exist (no planner running under this prefix).
     #[error("no planner service `{service}` (is `planner serve --iceoryx2` running with the same prefix?)")]
     NoService { service: &'static str },
-    /// Sending a request or a response failed.
-    #[error("iceoryx2 send: {0}")]
-    Send(String),
-    /// Receiving failed.
-    #[error("iceoryx2 receive: {0}")]
-    Receive(String),
+    /// Sending a request or a response, or notifying its event, failed.
+    #[error("iceoryx2 send ({what})")]
+    Send {
+        what: &'static str,
+        #[source]
+        source: Cause,
+    },
+    /// Receiving or waiting failed.
+    #[error("iceoryx2 receive ({what})")]
+    Receive {
+        what: &'static str,
+        #[source]
+        source: Cause,
+    },
 }
 
-fn setup<E: core::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> TransportError {
+fn setup<E: std::error::Error + Send + Sync + 'static>(what: &'static str) -> impl FnOnce(E) -> TransportError {
     move |e| TransportError::Setup {
         what,
-        detail: format!("{e:?}"),
+        source: Box::new(e),
+    }
+}
+
+fn send<E: std::error::Error + Send + Sync + 'static>(what: &'static str) -> impl FnOnce(E) -> TransportError {
+    move |e| TransportError::Send {
+        what,
+        source: Box::new(e),
+    }
+}
+
+fn receive<E: std::error::Error + Send + Sync + 'static>(what: &'static str) -> impl FnOnce(E) -> TransportError {
+    move |e| TransportError::Receive {
+        what,
+        source: Box::new(e),
     }
 }
 
@@ -62,8 +96,10 @@ fn setup<E: core::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> Transport
 pub fn config(prefix: Option<&str>) -> Result<Config, TransportError> {
     let mut config = Config::default();
     if let Some(prefix) = prefix {
-        config.global.prefix = FileName::new(prefix.as_bytes())
-            .map_err(|e| TransportError::Config(format!("prefix `{prefix}`: {e:?}")))?;
+        config.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| TransportError::Prefix {
+            prefix: prefix.to_owned(),
+            source: Box::new(e),
+        })?;
     }
     Ok(config)
 }
@@ -79,7 +115,7 @@ pub fn dead_nodes(config: &Config) -> usize {
         CallbackProgression::Continue
     });
     if let Err(e) = result {
-        tracing::warn!("cannot list iceoryx2 nodes: {e:?}");
+        tracing::warn!("cannot list iceoryx2 nodes: {e}");
     }
     dead
 }

@@ -1,0 +1,209 @@
+//! The protocol over Zenoh: every Zenoh configuration of the project (the planner's, the
+//! vehicles', the tests') and the vehicle's [`ZenohChannel`].
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use ::zenoh::bytes::Encoding;
+use ::zenoh::query::{ConsolidationMode, Querier};
+use ::zenoh::{Config, Session, Wait};
+use protocol::{PlanRequest, PlanResponse, WireFormat, ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY};
+
+use crate::{await_ready, Answer, ChannelError, PlanChannel};
+
+/// Zenoh's error of a failed call, kept as the source.
+pub type Cause = ::zenoh::Error;
+
+/// The Zenoh mode of a session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Talks to routers and peers it is told about (the planner).
+    Peer,
+    /// Connects to one router or peer (a vehicle).
+    Client,
+}
+
+/// A Zenoh configuration: the file when given (any zenohd-style JSON5 file, e.g.
+/// `deploy/zenoh/planner.json5`), else `mode` with scouting off (multicast and gossip), so
+/// that sessions find each other only through `listen` / `connect`. Endpoints given here
+/// replace the file's.
+pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[String]) -> Result<Config, ChannelError> {
+    let Some(path) = file else {
+        let json = serde_json::json!({
+            "mode": match mode { Mode::Peer => "peer", Mode::Client => "client" },
+            "listen": { "endpoints": listen },
+            "connect": { "endpoints": connect },
+            "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
+        });
+        return Config::from_json5(&json.to_string()).map_err(|source| ChannelError::ZenohConfig {
+            what: "built-in".into(),
+            source,
+        });
+    };
+    let mut config = Config::from_file(path).map_err(|source| ChannelError::ZenohConfig {
+        what: path.display().to_string(),
+        source,
+    })?;
+    for (key, endpoints) in [("listen/endpoints", listen), ("connect/endpoints", connect)] {
+        if !endpoints.is_empty() {
+            let json = serde_json::Value::from(endpoints.to_vec()).to_string();
+            config
+                .insert_json5(key, &json)
+                .map_err(|source| ChannelError::ZenohConfig {
+                    what: key.into(),
+                    source,
+                })?;
+        }
+    }
+    Ok(config)
+}
+
+/// The configuration of a client connecting to `endpoint` only.
+pub fn client_config(endpoint: &str) -> Result<Config, ChannelError> {
+    config(Mode::Client, None, &[], &[endpoint.to_owned()])
+}
+
+/// The Zenoh encoding of a wire format.
+pub fn encoding(format: WireFormat) -> Encoding {
+    match format {
+        WireFormat::Json => Encoding::APPLICATION_JSON,
+        WireFormat::Bincode => Encoding::from(ENCODING_BINCODE),
+    }
+}
+
+/// The wire format a query or reply carries: JSON if its encoding is `application/json`,
+/// else bincode.
+pub fn format_of(encoding: Option<&Encoding>) -> WireFormat {
+    match encoding {
+        Some(e) if e.to_string().starts_with(ENCODING_JSON) => WireFormat::Json,
+        _ => WireFormat::Bincode,
+    }
+}
+
+/// Where a Zenoh planner is: an endpoint, a Zenoh configuration file, or both (the endpoint
+/// then replaces the file's `connect` endpoints).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ZenohTarget {
+    /// E.g. `tcp/127.0.0.1:7447`.
+    pub endpoint: Option<String>,
+    /// A zenohd-style JSON5 file, e.g. `deploy/zenoh/client.json5`.
+    pub config_file: Option<PathBuf>,
+}
+
+impl ZenohTarget {
+    /// The session configuration of a vehicle.
+    pub fn config(&self) -> Result<Config, ChannelError> {
+        if self.endpoint.is_none() && self.config_file.is_none() {
+            return Err(ChannelError::NoZenohTarget);
+        }
+        let connect: Vec<String> = self.endpoint.iter().cloned().collect();
+        config(Mode::Client, self.config_file.as_deref(), &[], &connect)
+    }
+
+    fn describe(&self) -> String {
+        self.endpoint
+            .clone()
+            .or_else(|| self.config_file.as_ref().map(|f| f.display().to_string()))
+            .unwrap_or_default()
+    }
+}
+
+/// Requests as Zenoh queries on [`ZENOH_PLAN_KEY`] (bincode payloads).
+pub struct ZenohChannel {
+    session: Session,
+    querier: Querier<'static>,
+}
+
+impl ZenohChannel {
+    /// Opens a session to `target` (retrying until `ready_timeout`), declares a querier whose
+    /// queries end after `query_timeout`, and waits until a planner answers a probe (the
+    /// empty query, which comes back rejected).
+    pub fn connect(
+        target: &ZenohTarget,
+        ready_timeout: Duration,
+        query_timeout: Duration,
+    ) -> Result<Self, ChannelError> {
+        let since = Instant::now();
+        let at = || format!("at {}", target.describe());
+        let session = loop {
+            match ::zenoh::open(target.config()?).wait() {
+                Ok(s) => break s,
+                Err(source) if since.elapsed() >= ready_timeout => {
+                    return Err(ChannelError::Zenoh {
+                        what: format!("cannot reach the planner {}", at()),
+                        source,
+                    })
+                }
+                Err(_) => std::thread::sleep(Duration::from_millis(100)),
+            }
+        };
+        let querier = session
+            .declare_querier(ZENOH_PLAN_KEY)
+            .timeout(query_timeout)
+            .consolidation(ConsolidationMode::None)
+            .wait()
+            .map_err(|source| ChannelError::Zenoh {
+                what: "declaring the querier".into(),
+                source,
+            })?;
+        let channel = Self { session, querier };
+        await_ready(since, ready_timeout, Duration::from_millis(100), at, || {
+            Ok(!channel
+                .ask_raw(&[], WireFormat::Bincode, Duration::from_millis(500))
+                .is_empty())
+        })?;
+        Ok(channel)
+    }
+
+    /// Every reply payload to one query of `payload` in `format`, until every queryable has
+    /// answered, the querier's timeout, or `wait` (after the first reply).
+    pub fn ask_raw(&self, payload: &[u8], format: WireFormat, wait: Duration) -> Vec<(Vec<u8>, Instant)> {
+        let deadline = Instant::now() + wait;
+        let mut replies_seen = Vec::new();
+        let Ok(replies) = self
+            .querier
+            .get()
+            .payload(payload.to_vec())
+            .encoding(encoding(format))
+            .wait()
+        else {
+            return replies_seen;
+        };
+        while let Ok(Some(reply)) = replies.recv_deadline(deadline) {
+            if let Ok(sample) = reply.result() {
+                replies_seen.push((sample.payload().to_bytes().into_owned(), Instant::now()));
+            }
+            if deadline <= Instant::now() {
+                break;
+            }
+        }
+        replies_seen
+    }
+
+    /// The Zenoh session (to declare more entities on it).
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+}
+
+impl PlanChannel for ZenohChannel {
+    fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, ChannelError> {
+        let mut answer = Answer::default();
+        // Answers after the first are counted, not used.
+        for (bytes, at) in self.ask_raw(&protocol::encode_bincode(&request), WireFormat::Bincode, wait) {
+            match protocol::decode_bincode::<PlanResponse>(&bytes) {
+                Ok(response) if answer.response.is_none() => {
+                    answer.response = Some(response);
+                    answer.answered_at = Some(at);
+                }
+                Ok(_) => answer.extra_responses += 1,
+                Err(e) => tracing::warn!("undecodable answer: {e}"),
+            }
+        }
+        Ok(answer)
+    }
+
+    fn name(&self) -> &'static str {
+        "zenoh"
+    }
+}

@@ -1,0 +1,83 @@
+//! `load --processes N`: the vehicles shared among N `sim_client load-worker` children, whose
+//! parts are merged.
+
+use std::path::Path;
+
+use transport::iceoryx2::WaitMode;
+
+use super::report::LoadPart;
+use super::LoadSettings;
+use crate::connect::Transport;
+use crate::error::{Result, SimClientError};
+
+/// The command-line flags that reach `transport` (for the children).
+pub fn transport_flags(transport: &Transport) -> Vec<String> {
+    let mut flags = vec!["--transport".to_string(), transport.to_string()];
+    match transport {
+        Transport::InProcess => {}
+        Transport::Iceoryx2 { prefix, wait } => {
+            if let Some(p) = prefix {
+                flags.extend(["--iceoryx2-prefix".into(), p.clone()]);
+            }
+            if let WaitMode::BusyPoll { .. } = wait {
+                flags.push("--busy-poll".into());
+            }
+        }
+        Transport::Zenoh(target) => {
+            if let Some(e) = &target.endpoint {
+                flags.extend(["--zenoh-connect".into(), e.clone()]);
+            }
+            if let Some(f) = &target.config_file {
+                flags.extend(["--zenoh-config".into(), f.display().to_string()]);
+            }
+        }
+    }
+    flags
+}
+
+/// Runs `settings.clients` vehicles in `processes` children of this executable (each gets
+/// its share), the planner configuration from `planner_config`; their parts.
+pub fn run_worker_processes(
+    settings: &LoadSettings,
+    processes: usize,
+    planner_config: Option<&Path>,
+) -> Result<Vec<LoadPart>> {
+    let exe = std::env::current_exe().map_err(|e| SimClientError::io("sim_client's executable", e))?;
+    let dir = std::env::temp_dir().join(format!("hmdp-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| SimClientError::io(&dir, e))?;
+    let n = processes.min(settings.clients).max(1);
+    let mut children = Vec::new();
+    let mut base = settings.vehicle_id_base;
+    for i in 0..n {
+        let clients = settings.clients / n + usize::from(i < settings.clients % n);
+        let out = dir.join(format!("part-{i}.json"));
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("load-worker")
+            .args(transport_flags(&settings.transport))
+            .args(["--clients", &clients.to_string()])
+            .args(["--rate", &settings.rate_hz.to_string()])
+            .args(["--duration", &format!("{}ms", settings.duration.as_millis())])
+            .args(["--deadline-ms", &settings.deadline.as_millis().to_string()])
+            .args(["--seed", &settings.seed.to_string()])
+            .args(["--vehicle-id-base", &base.to_string()])
+            .arg("--part-out")
+            .arg(&out);
+        if let Some(p) = planner_config {
+            cmd.arg("--planner-config").arg(p);
+        }
+        let child = supervise::Supervised::spawn(&mut cmd, true).map_err(|e| SimClientError::io(&exe, e))?;
+        children.push((child, out));
+        base += clients as u64;
+    }
+    let mut parts = Vec::new();
+    for (mut child, out) in children {
+        let status = child.wait().map_err(|e| SimClientError::io(&exe, e))?;
+        if !status.success() {
+            return Err(SimClientError::Config(format!("a load worker failed ({status})")));
+        }
+        let text = std::fs::read_to_string(&out).map_err(|e| SimClientError::io(&out, e))?;
+        parts.push(serde_json::from_str(&text)?);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(parts)
+}
