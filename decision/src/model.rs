@@ -365,9 +365,7 @@ mod tests {
         // x after 3 steps: 12 + sum_j gain(2, j) u_j = 12 - 0.16 * (1.5 + 0.5).
         assert!((slow.x[2] - (12.0 - 0.32)).abs() < 1e-12);
         assert!(
-            (kin.coasting_position(&start, 2) + kin.position_gain(2, 1) * -1.0 + kin.position_gain(2, 2) * -1.0
-                - slow.x[2])
-                .abs()
+            (kin.coasting_position(&start, 2) - kin.position_gain(2, 1) - kin.position_gain(2, 2) - slow.x[2]).abs()
                 < 1e-12
         );
         assert_eq!(r.occupancy[0], LaneSet::single(2));

@@ -288,9 +288,11 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     let floor: Vec<f64> = ctx.sigmas.iter().map(|&s| config.idm.jam_distance_m + s).collect();
     let exempt_in_own_lanes = !ahead && config.perception.rear_responsibility;
     let sign = if ahead { 1.0 } else { -1.0 };
-    // Already inside the margin now, in a lane the ego occupies: the rows may stay violated by
-    // a decaying share of today's violation.
-    let violation_now = if sv_occ.intersects(occupancy0) && !exempt_in_own_lanes {
+    // Already inside the margin now, in a lane the ego occupies (or moving into one within the
+    // first step, as the lateral prediction sees a cut-in): the rows may stay violated by a
+    // decaying share of today's violation.
+    let shares_lane = sv_occ.intersects(occupancy0) || branches.iter().any(|b| b.occupancy[0].intersects(occupancy0));
+    let violation_now = if shares_lane && !exempt_in_own_lanes {
         (hard[0].max(floor[0]) - (sign * (sv.x_m - x0) - length)).max(0.0)
     } else {
         0.0

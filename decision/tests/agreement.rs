@@ -14,6 +14,8 @@ fn run(per_class: usize, seed: u64, combined: bool, soft_band: bool) -> Tally {
     let mut config = PlannerConfig::default();
     config.ego.combined_actions = combined;
     config.hysteresis.soft_band = soft_band;
+    // Optimality must not depend on how loaded the machine is: no time limit in practice.
+    config.solver.time_limit_s = 60.0;
     let mut milp = Planner::new(config.clone()).unwrap();
     let mut oracle_config = config.clone();
     oracle_config.solver.backend = Backend::Enumeration;

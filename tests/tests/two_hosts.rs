@@ -111,7 +111,7 @@ fn vehicle_and_planner_on_two_hosts_over_mutual_tls() {
         .find(|l| l.starts_with("case1: "))
         .unwrap_or_else(|| panic!("no case1 summary\n{report}"));
     assert!(summary.starts_with("case1: 100 decisions"), "{summary}\n{report}");
-    assert!(summary.contains(", collisions 0,"), "{summary}\n{report}");
+    assert!(summary.contains(", collisions 0 "), "{summary}\n{report}");
     assert_eq!(
         stdout.lines().filter(|l| l.starts_with("case1: ")).count(),
         1,
