@@ -357,7 +357,7 @@ fn steps_carry_the_hysteresis_memory() {
     let mut oracle_planner = default_planner();
     // A slower SV ahead in the ego's lane: the gap closes until it falls below the trigger
     // distance, after which the frozen thresholds must travel with every request.
-    let first = snapshot(25.0, &[(1, 96.0, 2, 22.0)]);
+    let first = snapshot(25.0, &[(1, 93.0, 2, 22.0)]);
     let steps = 8;
     let run = planner.ask("steps", &first, &["--steps", &steps.to_string()]);
     assert_eq!(run.code, 0, "{}", run.stderr);
@@ -382,7 +382,7 @@ fn steps_carry_the_hysteresis_memory() {
     assert!(first_trigger + 2 < steps, "too few steps after the trigger");
     let entry = corrective(first_trigger);
     assert_eq!(entry[0]["sv_id"], 1);
-    let release = |e: &serde_json::Value| e[0]["release_m"].as_f64().unwrap();
+    let release = |e: &[serde_json::Value]| e[0]["release_m"].as_f64().unwrap();
     let mut last = release(&entry);
     for i in first_trigger + 1..steps {
         let now = corrective(i);
