@@ -188,6 +188,10 @@ impl HighsSolver {
         // Costs ~3 ms per solve and never pays on models this small.
         solver.set_bool("mip_heuristic_run_feasibility_jump", false)?;
         solver.set_double("time_limit", time_limit_s)?;
+        // HiGHS 1.16's presolve declared feasible models with the continuous input
+        // infeasible (the oracle's optimum satisfies every row; with presolve off HiGHS finds
+        // it), and on models this small it saves nothing.
+        solver.set_string("presolve", "off")?;
         let data = &*solver.callback as *const CallbackData as *mut c_void;
         // SAFETY: ptr is a live instance, the callback has the C signature HiGHS expects and
         // `data` stays valid until Drop destroys the instance.
