@@ -82,6 +82,11 @@ pub struct EgoModel {
     pub max_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,
+    /// Braking stronger than this is priced by `cost.w_firm_brake`, m/s^2: with a cost that
+    /// grows faster than the braking, a gentle deceleration held longer beats a short hard
+    /// one for the same loss of speed (a linear cost is indifferent and its LP optimum sits
+    /// at the extremes, alternating cruise and hard braking).
+    pub firm_decel_mps2: f64,
     /// `|a|` within this counts as cruising, m/s^2: the same dead band that reads an SV's
     /// `beta` from its acceleration.
     pub cruise_band_mps2: f64,
@@ -100,6 +105,7 @@ impl Default for EgoModel {
             continuous_accel: true,
             max_decel_mps2: -6.0,
             comfort_decel_mps2: -2.0,
+            firm_decel_mps2: -1.0,
             cruise_band_mps2: 0.3,
             combined_actions: false,
             lane_change_s: 3.0,
@@ -162,6 +168,13 @@ pub struct Prediction {
     /// An SV moving sideways faster than this is predicted in the lane it moves towards
     /// from the first step (m/s); 0 switches this off.
     pub lateral_velocity_threshold_mps: f64,
+    /// While a branch keeps the SV's measured longitudinal state it continues at the measured
+    /// acceleration (stopping at zero speed), not at the state's representative one: a leader
+    /// easing off at -1 m/s^2 is otherwise predicted at `ego.decel_mps2` (-3) in its most
+    /// probable branch, the ego brakes for a deceleration that does not come, then cruises
+    /// again when it sees so, and repeats. Off: every branch uses the representative
+    /// accelerations, as in formulation.md.
+    pub measured_accel_while_keeping: bool,
 }
 
 impl Default for Prediction {
@@ -169,12 +182,13 @@ impl Default for Prediction {
         Self {
             p_keep_long: 0.8,
             p_keep_lat: 0.9,
-            p_min: 0.05,
+            p_min: 0.15,
             max_branches: 4,
             accel_dead_band_mps2: 0.3,
             noise_diag: [0.25, 0.04, 0.25],
             epsilon: 0.05,
             lateral_velocity_threshold_mps: 0.2,
+            measured_accel_while_keeping: true,
         }
     }
 }
@@ -241,6 +255,12 @@ pub struct Hysteresis {
     /// While the SV holds the ego below its desired speed (slower by more than 0.5 m/s) the
     /// ego is following it: reaching the release distance then does not release it.
     pub hold_while_following: bool,
+    /// The band row asks for the release distance `anticipation_s` seconds ahead at today's
+    /// relative speed: `gap + tau (v_sv - v_ego) >= d_rel`, s. An ego already falling back
+    /// is not pushed to brake further, one still closing in is asked to brake early and
+    /// gently, and the gap settles at the release distance instead of cycling around it
+    /// (0: the paper's `gap >= d_rel`).
+    pub anticipation_s: f64,
 }
 
 impl Default for Hysteresis {
@@ -256,6 +276,7 @@ impl Default for Hysteresis {
             release_on_resuming: true,
             resize_release: true,
             hold_while_following: true,
+            anticipation_s: 2.0,
         }
     }
 }
@@ -297,12 +318,14 @@ pub struct CostWeights {
     pub w_switch: f64,
     /// Per m/s^2 of planned braking beyond `ego.comfort_decel_mps2` per step.
     pub w_hard_brake: f64,
+    /// Per m/s^2 of planned braking beyond `ego.firm_decel_mps2` per step.
+    pub w_firm_brake: f64,
 }
 
 impl Default for CostWeights {
     fn default() -> Self {
         Self {
-            w_slack: 3.0,
+            w_slack: 1.5,
             w_global: 1.0e4,
             w_lane_change: 4.0,
             w_beta: [2.0, 0.0, 1.0],
@@ -311,8 +334,9 @@ impl Default for CostWeights {
             w_lane_speed: 3.0,
             lane_lookahead_m: 100.0,
             w_brake: 1.0,
-            w_switch: 2.0,
+            w_switch: 4.0,
             w_hard_brake: 20.0,
+            w_firm_brake: 2.0,
         }
     }
 }
@@ -441,6 +465,9 @@ impl PlannerConfig {
         ) {
             return bad("hysteresis", "eps_min_m must not exceed eps_max_m");
         }
+        if !(h.anticipation_s.is_finite() && h.anticipation_s >= 0.0) {
+            return bad("hysteresis.anticipation_s", "must be finite and non-negative");
+        }
         let c = &self.cost;
         if !(c.w_global > c.w_slack && c.w_slack >= 0.0) {
             return bad("cost.w_global", "must exceed cost.w_slack (w_q >> w_s)");
@@ -454,6 +481,7 @@ impl PlannerConfig {
                 &c.w_switch,
                 &c.w_speed_terminal,
                 &c.w_hard_brake,
+                &c.w_firm_brake,
             ])
             .any(|w| !(w.is_finite() && *w >= 0.0))
         {
@@ -463,13 +491,14 @@ impl PlannerConfig {
             return bad("recovery.gamma", "must be in (0, 1)");
         }
         if !(e.max_decel_mps2 <= e.comfort_decel_mps2
-            && e.comfort_decel_mps2 <= -e.cruise_band_mps2
+            && e.comfort_decel_mps2 <= e.firm_decel_mps2
+            && e.firm_decel_mps2 <= -e.cruise_band_mps2
             && e.cruise_band_mps2 >= 0.0
             && e.cruise_band_mps2 <= e.accel_mps2)
         {
             return bad(
                 "ego",
-                "need max_decel <= comfort_decel <= -cruise_band <= 0 <= cruise_band <= accel",
+                "need max_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
             );
         }
         if !(0.0..1.0).contains(&self.idm.violation_decay) {

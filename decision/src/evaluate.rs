@@ -91,12 +91,16 @@ pub fn requirements(problem: &Problem, r: &Rollout) -> Vec<Requirement> {
             }
             if let Some(frozen) = c.corrective {
                 if c.mean_occupancy[h].intersects(r.occupancy[h]) {
+                    // gap + tau s (v_sv - v_ego) >= d_rel, v_ego = v0 + dt sum(u).
+                    let speed_gain = sign * c.anticipation_s * kin.dt;
                     out.push(Requirement {
                         sv: i,
                         step: h,
                         band: true,
-                        rhs: frozen.release_m + l - sign * (c.mean_x[h] - coast),
-                        coef: position.clone(),
+                        rhs: frozen.release_m + l
+                            - sign * (c.mean_x[h] - coast)
+                            - c.band_anticipation(h, problem.ego.v),
+                        coef: position.iter().map(|p| p - speed_gain).collect(),
                     });
                 }
             }
@@ -120,6 +124,7 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
         cost += w.w_speed * (problem.desired_speed - r.v[h]).abs();
         cost += w.w_brake * (-r.accel[h]).max(0.0);
         cost += w.w_hard_brake * (problem.comfort_decel - r.accel[h]).max(0.0);
+        cost += w.w_firm_brake * (problem.firm_decel - r.accel[h]).max(0.0);
     }
     if let (Some(last), Some(v)) = (r.maneuvers.last(), r.v.last()) {
         cost += problem.lane_value[(last.lane - 1) as usize];
@@ -216,6 +221,8 @@ fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode
         m.add_row(0.0, f64::INFINITY, &mut [(brake, 1.0), (u[h], 1.0)]);
         let hard = m.add_col(w.w_hard_brake, 0.0, f64::INFINITY, false);
         m.add_row(problem.comfort_decel, f64::INFINITY, &mut [(hard, 1.0), (u[h], 1.0)]);
+        let firm = m.add_col(w.w_firm_brake, 0.0, f64::INFINITY, false);
+        m.add_row(problem.firm_decel, f64::INFINITY, &mut [(firm, 1.0), (u[h], 1.0)]);
     }
     let cells = problem.svs.len() * h_len;
     let (mut hys, mut glob) = (vec![None; cells], vec![None; cells]);

@@ -72,6 +72,7 @@ struct Columns {
     speed_dev: Vec<usize>,
     brake: Vec<usize>,
     hard_brake: Vec<usize>,
+    firm_brake: Vec<usize>,
     /// Occupancy column per step and lane, when some row needs it.
     occ: Vec<Vec<Option<usize>>>,
     /// Hysteresis and global slack per `[sv * H + s]`.
@@ -179,6 +180,9 @@ impl<'p> Builder<'p> {
             self.cols
                 .hard_brake
                 .push(self.m.add_col(w.w_hard_brake, 0.0, f64::INFINITY, false));
+            self.cols
+                .firm_brake
+                .push(self.m.add_col(w.w_firm_brake, 0.0, f64::INFINITY, false));
         }
     }
 
@@ -261,6 +265,10 @@ impl<'p> Builder<'p> {
                 Expr::default().term(self.cols.hard_brake[s], 1.0).term(u, 1.0),
                 p.comfort_decel,
             );
+            self.at_least(
+                Expr::default().term(self.cols.firm_brake[s], 1.0).term(u, 1.0),
+                p.firm_decel,
+            );
         }
     }
 
@@ -312,7 +320,10 @@ impl<'p> Builder<'p> {
         }
         if let Some(frozen) = c.corrective {
             if c.mean_occupancy[s].contains(l) {
-                rows.push((ego_gap, frozen.release_m - sign * c.mean_x[s] + p.length, true));
+                // gap + tau s (v_sv - v_ego) >= d_rel.
+                let anticipated = ego_gap.plus(&self.speed_change(s).scaled(-sign * c.anticipation_s));
+                let demand = frozen.release_m - sign * c.mean_x[s] + p.length - c.band_anticipation(s, p.ego.v);
+                rows.push((anticipated, demand, true));
             }
         }
         rows
@@ -433,6 +444,7 @@ fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize
         x[cols.speed_dev[s]] = (problem.desired_speed - r.v[s]).abs();
         x[cols.brake[s]] = (-r.accel[s]).max(0.0);
         x[cols.hard_brake[s]] = (problem.comfort_decel - r.accel[s]).max(0.0);
+        x[cols.firm_brake[s]] = (problem.firm_decel - r.accel[s]).max(0.0);
         for (l, o) in cols.occ[s].iter().enumerate() {
             if let Some(o) = *o {
                 x[o] = f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8)));

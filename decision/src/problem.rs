@@ -7,7 +7,7 @@ use crate::hysteresis;
 use crate::idm::{hard_margin, idm_distance, linearised_margins, thresholds};
 use crate::lanes::{lanes_at, nearest_lane, LaneSet};
 use crate::model::{rollout, EgoStart, Kinematics, Rollout};
-use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches, Branch};
+use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches_from, Branch};
 use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situation, SvObservation};
 
 /// Safety data of one SV inside the perception window.
@@ -43,10 +43,14 @@ pub struct SvConstraint {
     /// step, and the lanes of its most probable branch: the hysteresis works on the mean gap
     /// `mu_Delta` as in the paper, while the hard rows hold for every branch.
     pub mean_x: Vec<f64>,
+    /// Mean predicted speed per step (the band row's anticipation uses it).
+    pub mean_v: Vec<f64>,
     pub mean_occupancy: Vec<LaneSet>,
     /// Bound on the hysteresis slack (0 unless corrective): `d_HS`, or with
     /// `hysteresis.soft_band` at least down to the hard rows' weakest demand.
     pub slack_max: f64,
+    /// `hysteresis.anticipation_s` of the band row (0 unless corrective).
+    pub anticipation_s: f64,
     pub branches: Vec<Branch>,
 }
 
@@ -63,6 +67,13 @@ impl SvConstraint {
         } else {
             -1.0
         }
+    }
+
+    /// The band row's demand on the ego's gap at step `h` beyond the release distance: the
+    /// anticipated change of the gap over `anticipation_s` at the SV's mean speed against
+    /// the ego's measured one (the ego's own speed change enters the row as a term).
+    pub fn band_anticipation(&self, h: usize, ego_v0: f64) -> f64 {
+        self.anticipation_s * self.sign() * (self.mean_v[h] - ego_v0)
     }
 
     /// Hysteresis slack bound.
@@ -105,6 +116,8 @@ pub struct Problem {
     pub length: f64,
     /// Braking beyond this is priced by `w_hard_brake`, m/s^2.
     pub comfort_decel: f64,
+    /// Braking beyond this is priced by `w_firm_brake`, m/s^2.
+    pub firm_decel: f64,
     pub weights: CostWeights,
     /// Terminal cost of ending the horizon in lane `l` (index `l - 1`).
     pub lane_value: Vec<f64>,
@@ -212,6 +225,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         speed_cap: road.speed_limit_mps.max(ego.v_mps),
         length: config.vehicle.length_m,
         comfort_decel: config.ego.comfort_decel_mps2,
+        firm_decel: config.ego.firm_decel_mps2,
         weights: config.cost.clone(),
         lane_value: lane_values(config, s),
         svs,
@@ -273,10 +287,18 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         lane: nearest_lane(road, sv.y_m).expect("validated"),
         beta: beta_from_accel(sv.a_mps2, config.prediction.accel_dead_band_mps2),
     };
-    let mut branches = predict_branches(config, &ctx.kin, road.lanes, sv_start, sv.x_m, sv.v_mps, sv_occ);
+    let measured = (
+        sv.x_m,
+        sv.v_mps,
+        config.prediction.measured_accel_while_keeping.then_some(sv.a_mps2),
+    );
+    let mut branches = predict_branches_from(config, &ctx.kin, road.lanes, sv_start, measured, sv_occ);
     widen_by_lateral_motion(config, road, sv, &mut branches);
     let mean_x: Vec<f64> = (0..horizon)
         .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())
+        .collect();
+    let mean_v: Vec<f64> = (0..horizon)
+        .map(|h| branches.iter().map(|b| b.probability * b.v[h]).sum())
         .collect();
     let mean_occupancy = branches[0].occupancy.clone();
     let (margin, slope) = if config.idm.speed_dependent {
@@ -312,7 +334,9 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         corrective: None,
         relax_bound: config.recovery.gamma * d_idm,
         slack_max: 0.0,
+        anticipation_s: 0.0,
         mean_x,
+        mean_v,
         mean_occupancy,
         branches,
     };
@@ -349,15 +373,19 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         );
     }
     if let Some(entry) = c.corrective {
+        c.anticipation_s = config.hysteresis.anticipation_s;
         let band = entry.release_m - entry.trigger_m;
         let weakest = (0..horizon)
             .map(|h| c.floor[h].min(c.hard[h]) - c.allowance[h])
             .fold(f64::INFINITY, f64::min);
-        c.slack_max = if config.hysteresis.soft_band {
-            band.max(entry.release_m - weakest)
-        } else {
-            band
-        };
+        // The anticipated closing is priced, never forced: the bound covers it.
+        let closing = (0..horizon).map(|h| c.band_anticipation(h, v0)).fold(0.0, f64::max);
+        c.slack_max = closing
+            + if config.hysteresis.soft_band {
+                band.max(entry.release_m - weakest)
+            } else {
+                band
+            };
     }
     c
 }

@@ -76,6 +76,19 @@ pub fn predict_branches(
     v0: f64,
     occupancy0: LaneSet,
 ) -> Vec<Branch> {
+    predict_branches_from(config, kin, lanes, start, (x0, v0, None), occupancy0)
+}
+
+/// [`predict_branches`] from a measured `(x, v, a)`: with `a` given, the branch steps that
+/// keep the start's longitudinal state continue at `a` (stopping at zero speed).
+pub fn predict_branches_from(
+    config: &PlannerConfig,
+    kin: &Kinematics,
+    lanes: u8,
+    start: Maneuver,
+    (x0, v0, a0): (f64, f64, Option<f64>),
+    occupancy0: LaneSet,
+) -> Vec<Branch> {
     let horizon = config.timing.horizon;
     let mut leaves = Vec::new();
     let mut current = Branch {
@@ -95,6 +108,7 @@ pub fn predict_branches(
         x: f64,
         v: f64,
         occ: LaneSet,
+        kept_accel: Option<f64>,
         left: usize,
         current: &mut Branch,
         leaves: &mut Vec<Branch>,
@@ -104,7 +118,12 @@ pub fn predict_branches(
             return;
         }
         for (d, next, p) in action_probabilities(config, m, lanes) {
-            let (x1, v1) = kin.step(x, v, next.beta);
+            // The measured acceleration holds until the branch changes the longitudinal state.
+            let kept = kept_accel.filter(|_| d.longitudinal == 0);
+            let (x1, v1) = match kept {
+                Some(a) => step_to_standstill(kin.dt, x, v, a),
+                None => kin.step(x, v, next.beta),
+            };
             // An SV's speed never goes negative: a braking branch that would reverse is not a
             // physical outcome, so it is dropped like a clipped action.
             if v1 < 0.0 {
@@ -118,7 +137,7 @@ pub fn predict_branches(
             current.x.push(x1);
             current.v.push(v1);
             current.occupancy.push(occ1);
-            grow(config, kin, lanes, next, x1, v1, occ1, left - 1, current, leaves);
+            grow(config, kin, lanes, next, x1, v1, occ1, kept, left - 1, current, leaves);
             current.probability = saved;
             current.actions.pop();
             current.maneuvers.pop();
@@ -135,6 +154,7 @@ pub fn predict_branches(
         x0,
         v0,
         occupancy0,
+        a0,
         horizon,
         &mut current,
         &mut leaves,
@@ -154,6 +174,16 @@ pub fn predict_branches(
         b.probability /= total;
     }
     kept
+}
+
+/// One step at constant acceleration `a`, or to a standstill within the step.
+fn step_to_standstill(dt: f64, x: f64, v: f64, a: f64) -> (f64, f64) {
+    if v + a * dt >= 0.0 {
+        (x + v * dt + 0.5 * a * dt * dt, v + a * dt)
+    } else {
+        // Stops after v / |a|, having covered v^2 / (2 |a|).
+        (x + v * v / (-2.0 * a), 0.0)
+    }
 }
 
 /// Longitudinal variance `Sigma_Delta(h)` for `h = 1..=H`: `Sigma' = A Sigma A^T + Q` on
@@ -212,14 +242,60 @@ mod tests {
     }
 
     #[test]
+    fn a_kept_state_continues_at_the_measured_acceleration() {
+        let mut c = PlannerConfig::default();
+        c.prediction.p_min = 0.05;
+        let k = kin();
+        // Easing off at -1 m/s^2 (beta = -1): the keep branch continues at -1, not at the
+        // representative -3; a branch that leaves the state uses the representative values.
+        let b = predict_branches_from(
+            &c,
+            &k,
+            3,
+            Maneuver { lane: 2, beta: -1 },
+            (0.0, 20.0, Some(-1.0)),
+            LaneSet::single(2),
+        );
+        let keep = b.iter().find(|x| x.actions.iter().all(|a| *a == Action::KEEP)).unwrap();
+        let dt = k.dt;
+        for h in 0..3 {
+            let t = (h + 1) as f64 * dt;
+            assert!((keep.v[h] - (20.0 - t)).abs() < 1e-9, "{:?}", keep.v);
+            assert!((keep.x[h] - (20.0 * t - 0.5 * t * t)).abs() < 1e-9, "{:?}", keep.x);
+        }
+        let cruise = b
+            .iter()
+            .find(|x| x.actions[0].longitudinal == 1 && x.actions[1..].iter().all(|a| *a == Action::KEEP))
+            .unwrap();
+        // Leaving the state at once: the cruise state's 0 from the first step.
+        let v1 = 20.0 + k.accel_of(0) * dt;
+        assert!(
+            (cruise.v[0] - v1).abs() < 1e-9 && (cruise.v[2] - v1).abs() < 1e-9,
+            "{:?}",
+            cruise.v
+        );
+        // Off, the keep branch brakes at the state's representative deceleration.
+        let plain = predict_branches(&c, &k, 3, Maneuver { lane: 2, beta: -1 }, 0.0, 20.0, LaneSet::single(2));
+        assert!((plain[0].v[2] - (20.0 + 3.0 * dt * k.accel_of(-1))).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_kept_braking_state_stops_at_zero_speed() {
+        let (x, v) = step_to_standstill(0.4, 10.0, 1.0, -5.0);
+        assert_eq!(v, 0.0);
+        assert!((x - 10.1).abs() < 1e-12, "{x}");
+    }
+
+    #[test]
     fn pruning_by_hand() {
-        let c = PlannerConfig::default();
-        // Middle lane of 3, cruising. From beta = 0 the keep probability is 0.72/0.98; from
-        // beta = +-1 one longitudinal option is clipped, so keep is 0.72/0.89. Leaves:
-        // KKK = (0.72/0.98)^3 = 0.396590, DKK = AKK = (0.09/0.98)(0.72/0.89)^2 = 0.060104,
-        // KDK = KAK = (0.72/0.98)(0.09/0.98)(0.72/0.89) = 0.054585,
-        // KKD = (0.72/0.98)^2 (0.09/0.98) = 0.049573 < p_min. K = 4 keeps KKK, DKK, AKK, KDK
-        // (ties in enumeration order).
+        let mut c = PlannerConfig::default();
+        c.prediction.p_min = 0.05; // formulation.md's pruning (the default keeps only KKK)
+                                   // Middle lane of 3, cruising. From beta = 0 the keep probability is 0.72/0.98; from
+                                   // beta = +-1 one longitudinal option is clipped, so keep is 0.72/0.89. Leaves:
+                                   // KKK = (0.72/0.98)^3 = 0.396590, DKK = AKK = (0.09/0.98)(0.72/0.89)^2 = 0.060104,
+                                   // KDK = KAK = (0.72/0.98)(0.09/0.98)(0.72/0.89) = 0.054585,
+                                   // KKD = (0.72/0.98)^2 (0.09/0.98) = 0.049573 < p_min. K = 4 keeps KKK, DKK, AKK, KDK
+                                   // (ties in enumeration order).
         let b = predict_branches(
             &c,
             &kin(),

@@ -11,7 +11,12 @@ struct Tally {
 }
 
 fn run(per_class: usize, seed: u64, combined: bool, soft_band: bool) -> Tally {
+    run_at(3, per_class, seed, combined, soft_band)
+}
+
+fn run_at(horizon: usize, per_class: usize, seed: u64, combined: bool, soft_band: bool) -> Tally {
     let mut config = PlannerConfig::default();
+    config.timing.horizon = horizon;
     config.ego.combined_actions = combined;
     config.hysteresis.soft_band = soft_band;
     // Optimality must not depend on how loaded the machine is: no time limit in practice.
@@ -92,4 +97,25 @@ fn milp_agrees_with_enumeration_full() {
     let t = run(600, 2024, false, true);
     assert!(t.checked >= 10_000);
     eprintln!("agreement on {} situations, by layer {:?}", t.checked, t.by_layer);
+}
+
+#[test]
+fn milp_agrees_with_enumeration_at_horizon_4() {
+    let t = run_at(4, 2, 17, false, true);
+    assert_eq!(t.checked, 18 * 2);
+}
+
+#[test]
+#[ignore = "longer horizons (H = 4, 5, 6, single and combined actions at H = 4); run with --ignored"]
+fn milp_agrees_with_enumeration_at_longer_horizons() {
+    for (horizon, per_class) in [(4, 40), (5, 10), (6, 3)] {
+        let t = run_at(horizon, per_class, 19 + horizon as u64, false, true);
+        assert_eq!(t.checked, 18 * per_class);
+        eprintln!(
+            "H = {horizon}: agreement on {} situations, by layer {:?}",
+            t.checked, t.by_layer
+        );
+    }
+    let t = run_at(4, 3, 29, true, true);
+    assert_eq!(t.checked, 18 * 3);
 }

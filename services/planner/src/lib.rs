@@ -4,5 +4,6 @@
 
 pub mod bench;
 pub mod iceoryx2_front;
+pub mod scaling;
 pub mod service;
 pub mod zenoh_front;

@@ -36,6 +36,22 @@ enum Command {
         /// Planner configuration (TOML); defaults apply to missing fields.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// Sweep horizon x action set x SV count on the 4-lane highway class instead
+        /// (`--per-class` situations per cell).
+        #[arg(long)]
+        scaling: bool,
+        /// Horizons of the sweep.
+        #[arg(long, value_delimiter = ',', default_value = "3,4,5,6")]
+        horizons: Vec<usize>,
+        /// Action sets of the sweep.
+        #[arg(long, value_delimiter = ',', default_value = "single,combined")]
+        actions: Vec<ActionSet>,
+        /// SV counts of the sweep.
+        #[arg(long, value_delimiter = ',', default_value = "10")]
+        svs: Vec<usize>,
+        /// The sweep skips enumeration where there are more action sequences than this.
+        #[arg(long, default_value_t = 20_000)]
+        max_sequences: usize,
     },
     /// Print the default planner configuration as TOML.
     DefaultConfig,
@@ -43,6 +59,15 @@ enum Command {
     /// `hmdp/planner/plan`, statistics on `hmdp/planner/stats`) until SIGINT or SIGTERM.
     /// See docs/service.md.
     Serve(ServeArgs),
+}
+
+/// Which ego action set a benchmark sweeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ActionSet {
+    /// A lateral or a longitudinal action per step.
+    Single,
+    /// Both at once (9 per step).
+    Combined,
 }
 
 #[derive(clap::Args)]
@@ -256,6 +281,34 @@ fn main() -> Result<()> {
             per_class,
             seed,
             config,
+            scaling: true,
+            horizons,
+            actions,
+            svs,
+            max_sequences,
+        } => {
+            let config = supervise::planner_config(config.as_deref())?;
+            let spec = planner::scaling::ScalingSpec {
+                horizons,
+                combined: actions.iter().map(|a| *a == ActionSet::Combined).collect(),
+                svs,
+                per_cell: per_class,
+                seed,
+                max_sequences,
+            };
+            let report = planner::scaling::run(&config, &spec)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", planner::scaling::render(&report));
+            }
+        }
+        Command::Bench {
+            json,
+            per_class,
+            seed,
+            config,
+            ..
         } => {
             let config = supervise::planner_config(config.as_deref())?;
             let report = planner::bench::run(&config, per_class, seed)?;

@@ -1,0 +1,165 @@
+//! Where the planner's beta switches and hard brakes come from, over a campaign slice: each
+//! is counted by the layer of the decision in force, whether corrective mode was on and
+//! whether a lane change was under way.
+//!
+//! `cargo run --release -p sim_client --example diagnose -- [scale] [seed] [config.toml]`
+//!
+//! Environment: `ONLY_CFG=N` runs one configuration; `SHOW=1` lists every hard-braking onset;
+//! `SHOW_FALLBACK=1` every fallback with the SVs near the ego; `SHOW_TRACE=CFG:TRIAL` one
+//! trial decision by decision (speed, state, plan, the leader); `SHOW_COUNTS=1` the beta
+//! switches per trial.
+use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
+use sim_client::episode::{run_episode, Driver};
+use sim_client::link::InProcess;
+use std::collections::BTreeMap;
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let scale: f64 = args.get(1).map_or(Ok(0.03), |s| s.parse())?;
+    let seed: u64 = args.get(2).map_or(Ok(2026), |s| s.parse())?;
+    let mut settings = CampaignSettings::new(scale_trials(&paper_entries(), scale)?, seed, 1);
+    if let Some(path) = args.get(3) {
+        settings.planner = decision::PlannerConfig::from_toml_str(&std::fs::read_to_string(path)?)?;
+    }
+    let mut switches: BTreeMap<String, u64> = BTreeMap::new();
+    let mut brakes: BTreeMap<String, u64> = BTreeMap::new();
+    let mut minutes = 0.0;
+    for e in &settings.entries {
+        if std::env::var("ONLY_CFG").is_ok_and(|c| c != e.id.to_string()) {
+            continue;
+        }
+        for trial in 0..e.trials {
+            let mut spec = trial_spec(e, trial, &settings)?;
+            spec.record_trajectory = true;
+            let mut link = InProcess::new(settings.planner.clone())?;
+            let ep = run_episode(&spec, Driver::Planner(&mut link))?;
+            minutes += ep.simulated_s / 60.0;
+            let d = &ep.decisions;
+            if std::env::var("SHOW_COUNTS").is_ok() {
+                println!("trial {}:{} switches {}", e.id, trial, ep.metrics().beta_switches);
+            }
+            for w in d.windows(2) {
+                if w[0].beta != w[1].beta {
+                    let lc = w[1].target_lane != w[0].target_lane
+                        || w[0].plan.iter().any(|p| p.maneuver.lane != w[1].target_lane);
+                    let key = format!(
+                        "{:>2}->{:>2} {:?} corr={} lc={}",
+                        w[0].beta,
+                        w[1].beta,
+                        w[1].layer,
+                        w[1].corrective_svs > 0,
+                        lc
+                    );
+                    *switches.entry(key).or_default() += 1;
+                }
+            }
+            if std::env::var("SHOW_FALLBACK").is_ok() {
+                for r in d.iter().filter(|r| r.layer == Some(protocol::Layer::Fallback)) {
+                    let Some(s) = &r.situation else { continue };
+                    let ego = &s.ego;
+                    let mut near: Vec<_> = s
+                        .svs
+                        .iter()
+                        .filter(|sv| (sv.y_m - ego.y_m).abs() < 5.0 && (sv.x_m - ego.x_m).abs() < 80.0)
+                        .map(|sv| {
+                            format!(
+                                "[dx {:.1} dy {:.1} v {:.1} a {:.1} vy {:.2}]",
+                                sv.x_m - ego.x_m,
+                                sv.y_m - ego.y_m,
+                                sv.v_mps,
+                                sv.a_mps2,
+                                sv.vy_mps
+                            )
+                        })
+                        .collect();
+                    near.sort();
+                    println!(
+                        "fallback cfg {} trial {} t={:.1} v={:.1} y={:.1} man {:?} -> lane {} beta {} near {}",
+                        e.id,
+                        trial,
+                        r.time_s,
+                        ego.v_mps,
+                        ego.y_m,
+                        ego.maneuver,
+                        r.target_lane,
+                        r.beta,
+                        near.join(" ")
+                    );
+                }
+            }
+            if std::env::var("SHOW_TRACE").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
+                for r in d {
+                    let Some(s) = &r.situation else { continue };
+                    let ego = &s.ego;
+                    let lead = s
+                        .svs
+                        .iter()
+                        .filter(|sv| (sv.y_m - ego.y_m).abs() < 1.5 && sv.x_m > ego.x_m)
+                        .min_by(|a, b| a.x_m.total_cmp(&b.x_m));
+                    let lead = lead.map_or("-".into(), |l| {
+                        format!("gap {:.1} v {:.1} a {:.1}", l.x_m - ego.x_m - 5.0, l.v_mps, l.a_mps2)
+                    });
+                    let a0 = ep
+                        .trajectory
+                        .iter()
+                        .find(|t| t.id == 0 && (t.time_s - r.time_s - 0.4).abs() < 1e-6)
+                        .map_or(0.0, |t| t.a_mps2);
+                    println!(
+                        "t={:5.1} v={:5.2} beta {:>2} lane {} corr {} layer {:?} a_end {:5.2} plan {:?} | {}",
+                        r.time_s,
+                        ego.v_mps,
+                        r.beta,
+                        r.target_lane,
+                        r.corrective_svs,
+                        r.layer,
+                        a0,
+                        r.plan
+                            .iter()
+                            .map(|p| (p.maneuver.beta, (p.v_mps * 10.0).round() / 10.0))
+                            .collect::<Vec<_>>(),
+                        lead
+                    );
+                }
+            }
+            let ego: Vec<_> = ep.trajectory.iter().filter(|s| s.id == 0).collect();
+            let mut braking = false;
+            for s in &ego {
+                let b = s.a_mps2 <= -2.5;
+                if b && !braking {
+                    let k = d.iter().rposition(|r| r.time_s <= s.time_s + 1e-9).unwrap_or(0);
+                    let r = &d[k];
+                    let key = format!(
+                        "{:?} corr={} lc={}",
+                        r.layer,
+                        r.corrective_svs > 0,
+                        s.lane != s.target_lane
+                    );
+                    *brakes.entry(key).or_default() += 1;
+                    if std::env::var("SHOW").is_ok() {
+                        println!(
+                            "brake cfg {} trial {} t={:.1} a={:.2} v={:.1} lane {}->{} layer {:?} corr {}",
+                            e.id, trial, s.time_s, s.a_mps2, s.v_mps, s.lane, s.target_lane, r.layer, r.corrective_svs
+                        );
+                    }
+                }
+                braking = b;
+            }
+        }
+    }
+    println!("minutes {minutes:.1}");
+    println!(
+        "beta switches ({:.2}/min):",
+        switches.values().sum::<u64>() as f64 / minutes
+    );
+    for (k, v) in &switches {
+        println!("  {k}: {v}");
+    }
+    println!(
+        "hard brake onsets ({:.1}/h):",
+        brakes.values().sum::<u64>() as f64 / minutes * 60.0
+    );
+    for (k, v) in &brakes {
+        println!("  {k}: {v}");
+    }
+    Ok(())
+}
