@@ -149,16 +149,18 @@ def run_episode(scenario, driver, episode, net, routes, directory, link=None, gu
             result = _drive(scenario, driver, link, trace)
     finally:
         traci.close()  # SUMO writes its SSM and collision outputs when it closes
-    ssm = judge.parse_ssm(os.path.join(directory, "ssm.xml"))
+    ssm = judge.parse_ssm(os.path.join(directory, "ssm.xml"), from_s=result["entry_s"] + judge.SETTLE_S)
     collisions_file = judge.parse_collisions(os.path.join(directory, "collisions.xml"))
     critical = ssm.pop("ttc_critical_times")
-    steps = result["steps"]
+    # The share is of the steps the SSM figures cover (after the settling time).
+    steps = max(0, result["steps"] - round(judge.SETTLE_S / STEP_LENGTH_S))
     result.update(
         scenario=scenario.name,
         driver=driver,
         episode=episode,
         seed=seed,
         ssm=ssm,
+        ssm_steps=steps,
         ttc_below_3s_share=len(critical) / steps if steps else 0.0,
         collisions_sumo_output=collisions_file,
     )
@@ -255,6 +257,7 @@ def _drive(scenario, driver, link, trace):
             break  # as in the project's simulator: an episode ends at the ego's first collision
     simulated = traci.simulation.getTime() - start_s
     return {
+        "entry_s": start_s,
         "steps": steps,
         "simulated_s": simulated,
         "mean_speed_mps": speed_sum / steps if steps else 0.0,

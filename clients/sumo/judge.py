@@ -16,11 +16,18 @@ from scenario import EGO_ID
 
 # TTC below which a time step counts as critical (the share reported in the table).
 TTC_CRITICAL_S = 3.0
-# SSM thresholds: an encounter is written when one of its measures passes one of them. TTC is
-# logged up to 10 s so that the minimum TTC is a real value in calm traffic too.
+# SSM thresholds: an encounter is written when one of its measures passes its threshold at
+# some step. TTC is logged up to 10 s and DRAC from 1 m/s^2, so that the minimum TTC and the
+# maximum DRAC are real values in calm traffic too (a summary without any says so).
 SSM_MEASURES = "TTC DRAC PET TGAP"
-SSM_THRESHOLDS = "10.0 3.0 2.0 1.0"
+SSM_THRESHOLDS = "10.0 1.0 2.0 1.0"
+SSM_TTC_LOGGED_BELOW_S = 10.0
+SSM_DRAC_LOGGED_ABOVE_MPS2 = 1.0
 SSM_RANGE_M = 100.0
+# The first seconds after the ego's entry are SUMO's insertion (it inserts at the largest safe
+# speed, often a short headway), not the driver's doing: the SSM figures start after them.
+# Collisions count from the entry on.
+SETTLE_S = 5.0
 
 
 def sumo_judge_options(ssm_file, collision_file):
@@ -49,42 +56,53 @@ def _number(text):
     return x if math.isfinite(x) else None
 
 
-def parse_ssm(path, ego_id=EGO_ID):
-    """The SSM figures of one episode from SUMO's SSM XML.
+def _series(el, tag, from_s):
+    """(time, value) of a span of `el` from `from_s` on, NA values left out."""
+    times = _values(el.find("timeSpan"))
+    out = []
+    for t, x in zip(times, _values(el.find(tag))):
+        t, v = float(t), _number(x)
+        if v is not None and t >= from_s - 1e-6:
+            out.append((t, v))
+    return out
+
+
+def parse_ssm(path, from_s=0.0, ego_id=EGO_ID):
+    """The SSM figures of one episode from SUMO's SSM XML (its trajectories), from `from_s` on.
 
     Returns min_ttc_s, max_drac_mps2, min_pet_s, min_time_headway_s (None when SUMO logged no
-    value), conflicts (encounters written), and ttc_critical_times (the set of time steps at
-    which some encounter had a TTC below TTC_CRITICAL_S).
+    value), conflicts (encounters with a value after from_s), and ttc_critical_times (the set
+    of time steps at which some encounter had a TTC below TTC_CRITICAL_S).
     """
     min_ttc = max_drac = min_pet = min_tgap = None
     conflicts = 0
     critical = set()
     for _, el in ET.iterparse(path, events=("end",)):
         if el.tag == "conflict" and el.get("ego") == ego_id:
-            conflicts += 1
-            times = _values(el.find("timeSpan"))
-            ttcs = _values(el.find("TTCSpan"))
-            for t, ttc in zip(times, ttcs):
-                v = _number(ttc)
-                if v is not None and v < TTC_CRITICAL_S:
-                    critical.add(round(float(t), 3))
-            for tag, attr in (("minTTC", "min_ttc"), ("maxDRAC", "max_drac"), ("PET", "min_pet")):
-                node = el.find(tag)
-                v = _number(node.get("value")) if node is not None else None
-                if v is None:
-                    continue
-                if attr == "min_ttc":
-                    min_ttc = v if min_ttc is None else min(min_ttc, v)
-                elif attr == "max_drac":
-                    max_drac = v if max_drac is None else max(max_drac, v)
-                else:
-                    min_pet = v if min_pet is None else min(min_pet, v)
+            ttc = _series(el, "TTCSpan", from_s)
+            drac = _series(el, "DRACSpan", from_s)
+            pet = el.find("PET")
+            pet_v = _number(pet.get("value")) if pet is not None else None
+            pet_t = _number(pet.get("time")) if pet is not None else None
+            if pet_v is not None and (pet_t is None or pet_t < from_s - 1e-6):
+                pet_v = None
+            if ttc or drac or pet_v is not None:
+                conflicts += 1
+            critical.update(round(t, 3) for t, v in ttc if v < TTC_CRITICAL_S)
+            if ttc:
+                m = min(v for _, v in ttc)
+                min_ttc = m if min_ttc is None else min(min_ttc, m)
+            if drac:
+                m = max(v for _, v in drac)
+                max_drac = m if max_drac is None else max(max_drac, m)
+            if pet_v is not None:
+                min_pet = pet_v if min_pet is None else min(min_pet, pet_v)
             el.clear()
         elif el.tag == "globalMeasures" and el.get("ego") == ego_id:
-            node = el.find("minTGAP")
-            v = _number(node.get("value")) if node is not None else None
-            if v is not None:
-                min_tgap = v if min_tgap is None else min(min_tgap, v)
+            tgap = _series(el, "TGAPSpan", from_s)
+            if tgap:
+                m = min(v for _, v in tgap)
+                min_tgap = m if min_tgap is None else min(min_tgap, m)
             el.clear()
     return {
         "min_ttc_s": min_ttc,

@@ -2,6 +2,8 @@
 
 import math
 
+from judge import SSM_DRAC_LOGGED_ABOVE_MPS2, SSM_TTC_LOGGED_BELOW_S
+
 LAYERS = ("nominal", "global_relaxation", "fallback", "watchdog_fallback")
 
 
@@ -25,6 +27,7 @@ def _max(values):
 def summarise(episodes):
     """The summary of one scenario x driver from its episodes' metrics."""
     steps = sum(e["steps"] for e in episodes)
+    ssm_steps = sum(e["ssm_steps"] for e in episodes)
     simulated = sum(e["simulated_s"] for e in episodes)
     layers = {}
     for e in episodes:
@@ -43,7 +46,9 @@ def summarise(episodes):
         "mean_speed_mps": sum(e["mean_speed_mps"] * e["steps"] for e in episodes) / steps if steps else None,
         "lane_changes_per_min": sum(e["lane_changes"] for e in episodes) / (simulated / 60.0) if simulated else None,
         "min_ttc_s": _min(e["ssm"]["min_ttc_s"] for e in episodes),
-        "ttc_below_3s_share": sum(e["ttc_below_3s_share"] * e["steps"] for e in episodes) / steps if steps else None,
+        "ttc_below_3s_share": (
+            sum(e["ttc_below_3s_share"] * e["ssm_steps"] for e in episodes) / ssm_steps if ssm_steps else None
+        ),
         "max_drac_mps2": _max(e["ssm"]["max_drac_mps2"] for e in episodes),
         "min_pet_s": _min(e["ssm"]["min_pet_s"] for e in episodes),
         "min_time_headway_s": _min(e["ssm"]["min_time_headway_s"] for e in episodes),
@@ -89,8 +94,9 @@ def markdown(results):
                 rt = f"{summary['round_trip_p50_ms']:.1f} / {summary['round_trip_p99_ms']:.1f}"
             out.append(
                 f"| {driver} | {summary['episodes']} | {summary['collisions']} | {_fmt(summary['mean_speed_mps'])} | "
-                f"{_fmt(summary['lane_changes_per_min'])} | {_fmt(summary['min_ttc_s'])} | "
-                f"{_fmt(100 * summary['ttc_below_3s_share'], 2)} % | {_fmt(summary['max_drac_mps2'])} | "
+                f"{_fmt(summary['lane_changes_per_min'])} | {_fmt(summary['min_ttc_s'], none=f'> {SSM_TTC_LOGGED_BELOW_S:g}')} | "
+                f"{_fmt(100 * summary['ttc_below_3s_share'], 2)} % | "
+                f"{_fmt(summary['max_drac_mps2'], none=f'< {SSM_DRAC_LOGGED_ABOVE_MPS2:g}')} | "
                 f"{_fmt(summary['min_pet_s'])} | {_fmt(summary['min_time_headway_s'])} | {_layers(summary)} | {rt} |"
             )
         out.append("")
