@@ -74,6 +74,9 @@ def sumo_command(scenario, net, routes, seed, directory, gui=False):
         "--time-to-teleport", "-1",  # a jam never teleports a vehicle away
         "--no-step-log", "true",
         "--error-log", os.path.join(directory, "sumo-warnings.log"),
+        # The ego's own trajectory as SUMO records it (lane, position, speed every step).
+        "--device.fcd.explicit", EGO_ID,
+        "--fcd-output", os.path.join(directory, "ego-fcd.xml"),
     ]  # fmt: skip
     command += judge.sumo_judge_options(os.path.join(directory, "ssm.xml"), os.path.join(directory, "collisions.xml"))
     if gui:
@@ -229,6 +232,7 @@ def _drive(scenario, driver, link, trace):
                         "ego_sumo_lane": context[EGO_ID][tc.VAR_LANE_INDEX],
                         "ego_v_mps": v_now,
                         "svs": len(request["svs"]),
+                        "ego_sent": request["ego"],
                         "maneuver_sent": request["ego"]["maneuver"],
                         "memory_sent": request["memory"],
                         "layer": decided["layer"],
