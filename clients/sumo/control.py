@@ -29,7 +29,7 @@ import traci.constants as tc
 
 import judge
 import mapping
-from scenario import EGO_ID
+from scenario import EDGE_ID, EGO_ID
 
 STEP_LENGTH_S = 0.1
 DECISION_PERIOD_S = 0.4  # deploy/planner.toml timing.step_s
@@ -72,6 +72,9 @@ def sumo_command(scenario, net, routes, seed, directory, gui=False):
         "--end", str(end),
         "--lanechange.duration", str(LANE_CHANGE_S),
         "--time-to-teleport", "-1",  # a jam never teleports a vehicle away
+        # Each waiting vehicle is tried on its own: the ego (entering mid-road) does not wait
+        # behind a queue of flow vehicles that cannot enter at the road's start.
+        "--eager-insert", "true",
         "--no-step-log", "true",
         "--error-log", os.path.join(directory, "sumo-warnings.log"),
         # The ego's own trajectory as SUMO records it (lane, position, speed every step).
@@ -144,6 +147,8 @@ def run_episode(scenario, driver, episode, net, routes, directory, link=None, gu
     trace_path = os.path.join(directory, "trace.jsonl")
     try:
         _wait_for_ego(scenario)
+        # The traffic the ego meets: vehicles per km and lane on the road when it enters.
+        density = traci.edge.getLastStepVehicleNumber(EDGE_ID) / (scenario.length_m / 1000.0 * scenario.lanes)
         if driver == "planner":
             traci.vehicle.setSpeedMode(EGO_ID, SPEED_MODE_PLANNER)
             traci.vehicle.setLaneChangeMode(EGO_ID, LANE_CHANGE_MODE_PLANNER)
@@ -164,6 +169,8 @@ def run_episode(scenario, driver, episode, net, routes, directory, link=None, gu
         seed=seed,
         ssm=ssm,
         ssm_steps=steps,
+        density_at_entry_veh_per_km_lane=density,
+        entry_delay_s=result["entry_s"] - scenario.warmup_s,
         ttc_below_3s_share=len(critical) / steps if steps else 0.0,
         collisions_sumo_output=collisions_file,
     )

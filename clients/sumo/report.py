@@ -52,6 +52,7 @@ def summarise(episodes):
         "max_drac_mps2": _max(e["ssm"]["max_drac_mps2"] for e in episodes),
         "min_pet_s": _min(e["ssm"]["min_pet_s"] for e in episodes),
         "min_time_headway_s": _min(e["ssm"]["min_time_headway_s"] for e in episodes),
+        "density_at_entry_veh_per_km_lane": sum(e["density_at_entry_veh_per_km_lane"] for e in episodes) / len(episodes),
         "decisions": sum(e["decisions"] for e in episodes),
         "layers": layers,
         "round_trip_p50_ms": percentile(rtts, 50) * 1e3 if rtts else None,
@@ -82,6 +83,8 @@ def markdown(results):
             f"### {s['name']}: {s['lanes']} lanes, {s['flow_veh_per_hour_per_lane']:.0f} veh/h/lane, "
             f"{s['duration_s']:.0f} s, seeds {s['seed']}..{s['seed'] + scenario['episodes'] - 1}\n"
         )
+        densities = [d["density_at_entry_veh_per_km_lane"] for d in scenario["drivers"].values()]
+        out.append(f"Density when the ego enters: {sum(densities) / len(densities):.1f} veh/km/lane (mean over episodes).\n")
         out.append(
             "| driver | episodes | collisions | mean speed (m/s) | lane changes/min | min TTC (s) | TTC < 3 s | "
             "max DRAC (m/s²) | min PET (s) | min headway (s) | decisions nominal / A / B / watchdog | "
