@@ -12,6 +12,8 @@ import subprocess
 import tomllib
 from xml.sax.saxutils import quoteattr
 
+import sumolib
+
 # The ego's SUMO vehicle id and the id of the single highway edge.
 EGO_ID = "ego"
 EDGE_ID = "highway"
@@ -132,6 +134,13 @@ def write_network(scenario, directory):
         check=True,
         stdout=subprocess.DEVNULL,
     )
+    # What netconvert built is what the mapping assumes: the lanes, their width, straight along +x.
+    edge = sumolib.net.readNet(net).getEdge(EDGE_ID)
+    lanes = edge.getLanes()
+    if len(lanes) != scenario.lanes or any(abs(lane.getWidth() - scenario.lane_width_m) > 1e-6 for lane in lanes):
+        raise ValueError(f"netconvert built {len(lanes)} lanes, not {scenario.lanes} of {scenario.lane_width_m} m")
+    if any(abs(y - lanes[0].getShape()[0][1]) > 1e-6 for _, y in lanes[0].getShape()):
+        raise ValueError("netconvert did not build a straight road along +x")
     return net
 
 
