@@ -238,7 +238,7 @@ def _drive(scenario, driver, link, trace):
                         "time_s": round(now, 3),
                         "ego_sumo_lane": context[EGO_ID][tc.VAR_LANE_INDEX],
                         "ego_v_mps": v_now,
-                        "svs": len(request["svs"]),
+                        "svs_sent": request["svs"],
                         "ego_sent": request["ego"],
                         "maneuver_sent": request["ego"]["maneuver"],
                         "memory_sent": request["memory"],
