@@ -68,6 +68,16 @@ def _fmt(x, digits=2, none="–"):
     return none if x is None else f"{x:.{digits}f}"
 
 
+def _ttc(x):
+    # SUMO logs an encounter only when a measure passes its threshold: above the TTC
+    # threshold the logged values are a partial sample, the honest figure is "above it".
+    return f"> {SSM_TTC_LOGGED_BELOW_S:g}" if x is None or x >= SSM_TTC_LOGGED_BELOW_S else f"{x:.2f}"
+
+
+def _drac(x):
+    return f"< {SSM_DRAC_LOGGED_ABOVE_MPS2:g}" if x is None or x < SSM_DRAC_LOGGED_ABOVE_MPS2 else f"{x:.2f}"
+
+
 def _layers(summary):
     if not summary["decisions"]:
         return "–"
@@ -97,9 +107,9 @@ def markdown(results):
                 rt = f"{summary['round_trip_p50_ms']:.1f} / {summary['round_trip_p99_ms']:.1f}"
             out.append(
                 f"| {driver} | {summary['episodes']} | {summary['collisions']} | {_fmt(summary['mean_speed_mps'])} | "
-                f"{_fmt(summary['lane_changes_per_min'])} | {_fmt(summary['min_ttc_s'], none=f'> {SSM_TTC_LOGGED_BELOW_S:g}')} | "
+                f"{_fmt(summary['lane_changes_per_min'])} | {_ttc(summary['min_ttc_s'])} | "
                 f"{_fmt(100 * summary['ttc_below_3s_share'], 2)} % | "
-                f"{_fmt(summary['max_drac_mps2'], none=f'< {SSM_DRAC_LOGGED_ABOVE_MPS2:g}')} | "
+                f"{_drac(summary['max_drac_mps2'])} | "
                 f"{_fmt(summary['min_pet_s'])} | {_fmt(summary['min_time_headway_s'])} | {_layers(summary)} | {rt} |"
             )
         out.append("")
