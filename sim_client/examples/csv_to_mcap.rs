@@ -35,11 +35,14 @@ struct Row {
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [input, output, rest @ ..] = args.as_slice() else {
-        anyhow::bail!("usage: csv_to_mcap TRAJECTORY.csv OUT.mcap [lanes lane_width_m speed_limit_mps ego_desired_speed_mps]");
+        anyhow::bail!(
+            "usage: csv_to_mcap TRAJECTORY.csv OUT.mcap [lanes lane_width_m speed_limit_mps ego_desired_speed_mps]"
+        );
     };
     // Case 1's road (Table II) unless given.
     let number = |i: usize, default: f64| -> Result<f64> {
-        rest.get(i).map_or(Ok(default), |s| s.parse().with_context(|| format!("argument {s}")))
+        rest.get(i)
+            .map_or(Ok(default), |s| s.parse().with_context(|| format!("argument {s}")))
     };
     let mut steps: BTreeMap<u64, VehicleStates> = BTreeMap::new();
     let mut reader = csv::Reader::from_path(input).with_context(|| format!("reading {input}"))?;

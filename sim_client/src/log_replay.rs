@@ -188,7 +188,11 @@ pub fn replay_log(
         params,
         seed: info.seed,
         duration_s: last - first.time_s,
-        max_svs: if info.max_svs == 0 { config.perception.max_svs } else { info.max_svs },
+        max_svs: if info.max_svs == 0 {
+            config.perception.max_svs
+        } else {
+            info.max_svs
+        },
         record_trajectory: true,
     };
     let mut follower = Follower {

@@ -239,7 +239,14 @@ pub fn write_trial(path: &Path, info: &TrialInfo, truth: &[VehicleStates], episo
         }
         let at = nanos(states.time_s);
         sink.write_json(1, at, states)?;
-        let scene = scene_update(at, road, &states.vehicles, &plan, traffic::VEHICLE_LENGTH, traffic::VEHICLE_WIDTH);
+        let scene = scene_update(
+            at,
+            road,
+            &states.vehicles,
+            &plan,
+            traffic::VEHICLE_LENGTH,
+            traffic::VEHICLE_WIDTH,
+        );
         sink.write_json(3, at, &scene)?;
     }
     Ok(sink.finish()?)

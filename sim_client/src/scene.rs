@@ -105,7 +105,13 @@ pub fn scene_update(
             "scale_invariant": true, "color": color(1.0, 1.0, 1.0, 1.0),
             "text": format!("{label} {:.1} m/s", v.v_mps),
         });
-        entities.push(entity(&format!("vehicle/{}", v.id), &stamp, vec![cube], Vec::new(), vec![text]));
+        entities.push(entity(
+            &format!("vehicle/{}", v.id),
+            &stamp,
+            vec![cube],
+            Vec::new(),
+            vec![text],
+        ));
     }
     let strip: Vec<Value> = plan
         .iter()

@@ -49,7 +49,11 @@ fn recorded_case1() -> &'static Recorded {
             &|| planner.log(),
         );
         let status = planner.terminate(Duration::from_secs(20));
-        assert!(status.is_some_and(|s| s.success()), "planner exit {status:?}\n{}", planner.log());
+        assert!(
+            status.is_some_and(|s| s.success()),
+            "planner exit {status:?}\n{}",
+            planner.log()
+        );
         assert!(planner.log().contains("recording finished"), "{}", planner.log());
         let decisions = String::from_utf8(csv).expect("utf-8 csv").lines().count() - 1;
         assert!(decisions > 50, "case1 made {decisions} decisions");
@@ -125,7 +129,10 @@ fn a_truncated_or_foreign_file_is_a_clear_error() {
     std::fs::write(&truncated, &bytes[..bytes.len() / 2]).expect("written");
     let not_mcap = rec.dir.join("not.mcap");
     std::fs::write(&not_mcap, b"{\"a\": 1}\n").expect("written");
-    for (file, expected) in [(&truncated, "not a valid MCAP file"), (&not_mcap, "not a valid MCAP file")] {
+    for (file, expected) in [
+        (&truncated, "not a valid MCAP file"),
+        (&not_mcap, "not a valid MCAP file"),
+    ] {
         let out = replay(&[path_str(file)]);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{stderr}");
@@ -156,7 +163,11 @@ fn python_mcap_ready() -> bool {
 /// The reference reader's view of `file` (clients/mcap_check/check_recording.py).
 pub fn python_view(file: &Path) -> serde_json::Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../clients/mcap_check/check_recording.py");
-    let out = Command::new("python3").arg(script).arg(file).output().expect("python3 runs");
+    let out = Command::new("python3")
+        .arg(script)
+        .arg(file)
+        .output()
+        .expect("python3 runs");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     json_of(&out)
 }
@@ -184,7 +195,10 @@ fn the_python_mcap_reader_sees_every_request_and_answer() {
     assert_eq!(channels["/planner/request"]["count"], rec.decisions as u64, "{view}");
     assert_eq!(channels["/planner/response"]["count"], rec.decisions as u64, "{view}");
     // At least the final statistics; one a second while serving.
-    assert!(channels["/planner/stats"]["count"].as_u64().expect("count") >= 1, "{view}");
+    assert!(
+        channels["/planner/stats"]["count"].as_u64().expect("count") >= 1,
+        "{view}"
+    );
     assert_eq!(channels["/planner/stats"]["log_times_ordered"], true, "{view}");
     let ids = |topic: &str| {
         let mut v: Vec<(u64, u64)> = channels[topic]["ids"]
@@ -266,7 +280,10 @@ fn log_replay_reproduces_the_recorded_ego_and_scores_a_perturbed_run() {
     }
     assert_eq!(same["metrics"]["decisions"], *decisions as u64, "{same}");
     let shifted = log_replay(file, &["--perturb-sv-m", "20", "--perturb-seed", "3"], "shifted");
-    assert!(shifted["metrics"]["decisions"].as_u64().expect("count") > 0, "{shifted}");
+    assert!(
+        shifted["metrics"]["decisions"].as_u64().expect("count") > 0,
+        "{shifted}"
+    );
     assert_eq!(shifted["svs"], same["svs"]);
     let dx = shifted["ego_deviation"]["max_dx_m"].as_f64().expect("number");
     assert!(dx > 0.05, "moved SVs should change the ego's run: {shifted}");

@@ -60,7 +60,8 @@ pub fn describe(response: &PlanResponse) -> String {
     match response.outcome.get() {
         Ok(OutcomeRef::Decided(d)) => format!(
             "{} lane {} beta {} accel {:.4} plan [{}] corrective {}",
-            d.layer().map_or_else(|_| format!("layer#{}", d.layer_code()), |l| l.name().to_owned()),
+            d.layer()
+                .map_or_else(|_| format!("layer#{}", d.layer_code()), |l| l.name().to_owned()),
             d.next_maneuver.lane,
             d.next_maneuver.beta,
             d.setpoint.accel_mps2,
@@ -73,7 +74,8 @@ pub fn describe(response: &PlanResponse) -> String {
         ),
         Ok(OutcomeRef::Rejected(r)) => format!(
             "rejected {} `{}`",
-            r.reason().map_or_else(|_| format!("#{}", r.reason_code()), |r| r.name().to_owned()),
+            r.reason()
+                .map_or_else(|_| format!("#{}", r.reason_code()), |r| r.name().to_owned()),
             r.field()
         ),
         Err(e) => format!("invalid outcome: {e}"),

@@ -18,8 +18,10 @@ fn object(properties: &[(&str, Value)], optional: &[&str]) -> Value {
         .map(|(name, _)| *name)
         .filter(|name| !optional.contains(name))
         .collect();
-    let properties: serde_json::Map<String, Value> =
-        properties.iter().map(|(name, v)| ((*name).to_owned(), v.clone())).collect();
+    let properties: serde_json::Map<String, Value> = properties
+        .iter()
+        .map(|(name, v)| ((*name).to_owned(), v.clone()))
+        .collect();
     json!({ "type": "object", "properties": properties, "required": required })
 }
 
@@ -58,7 +60,11 @@ fn titled(title: &str, mut schema: Value) -> Value {
 /// `protocol::PlanRequest`.
 pub fn plan_request() -> Value {
     let road = object(
-        &[("lanes", integer()), ("lane_width_m", number()), ("speed_limit_mps", number())],
+        &[
+            ("lanes", integer()),
+            ("lane_width_m", number()),
+            ("speed_limit_mps", number()),
+        ],
         &[],
     );
     let ego = object(
@@ -130,7 +136,13 @@ pub fn plan_response() -> Value {
         ],
         &[],
     );
-    let rejected = object(&[("reason", json!({ "type": "string" })), ("field", json!({ "type": "string" }))], &[]);
+    let rejected = object(
+        &[
+            ("reason", json!({ "type": "string" })),
+            ("field", json!({ "type": "string" })),
+        ],
+        &[],
+    );
     let outcome = json!({
         "oneOf": [
             object(&[("decided", decided)], &[]),

@@ -82,7 +82,11 @@ impl McapSink {
         if index == 0 {
             return self.base.clone();
         }
-        let stem = self.base.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem = self
+            .base
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         self.base.with_file_name(format!("{stem}.{index}.mcap"))
     }
 
@@ -145,7 +149,10 @@ impl McapSink {
             return Err(RecordingError::WriterGone);
         };
         let Some(&channel_id) = f.channel_ids.get(channel) else {
-            return Err(RecordingError::mcap(&path, mcap::McapError::UnknownChannel(self.sequence, channel as u16)));
+            return Err(RecordingError::mcap(
+                &path,
+                mcap::McapError::UnknownChannel(self.sequence, channel as u16),
+            ));
         };
         let header = mcap::records::MessageHeader {
             channel_id,
@@ -163,7 +170,12 @@ impl McapSink {
     }
 
     /// Serialises `value` as JSON and writes it.
-    pub fn write_json<T: serde::Serialize + ?Sized>(&mut self, channel: usize, log_time_ns: u64, value: &T) -> Result<()> {
+    pub fn write_json<T: serde::Serialize + ?Sized>(
+        &mut self,
+        channel: usize,
+        log_time_ns: u64,
+        value: &T,
+    ) -> Result<()> {
         let data = serde_json::to_vec(value).map_err(|source| RecordingError::Encode {
             topic: self.channels.get(channel).map_or("?", |c| c.topic).to_owned(),
             source,

@@ -4,18 +4,33 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use protocol::{PlanRequest, PlanResponse, Rejected, RejectReason, Road, EgoState};
+use protocol::{EgoState, PlanRequest, PlanResponse, RejectReason, Rejected, Road};
 use recording::{
-    read_exchanges, read_messages, McapSink, PlanRecorder, RecorderOptions, RecordingError, Rotation,
-    PLANNER_CHANNELS, REQUEST_TOPIC, RESPONSE_TOPIC, STATS_TOPIC,
+    read_exchanges, read_messages, McapSink, PlanRecorder, RecorderOptions, RecordingError, Rotation, PLANNER_CHANNELS,
+    REQUEST_TOPIC, RESPONSE_TOPIC, STATS_TOPIC,
 };
 
 fn request(vehicle: u64, sequence: u64) -> PlanRequest {
-    PlanRequest::new(vehicle, sequence, sequence * 400_000_000, Road { lanes: 3, lane_width_m: 3.5, speed_limit_mps: 30.0 }, EgoState::default())
+    PlanRequest::new(
+        vehicle,
+        sequence,
+        sequence * 400_000_000,
+        Road {
+            lanes: 3,
+            lane_width_m: 3.5,
+            speed_limit_mps: 30.0,
+        },
+        EgoState::default(),
+    )
 }
 
 fn response(vehicle: u64, sequence: u64) -> PlanResponse {
-    PlanResponse::rejected(vehicle, sequence, Rejected::new(RejectReason::OutOfRange, "ego.v_mps"), 7)
+    PlanResponse::rejected(
+        vehicle,
+        sequence,
+        Rejected::new(RejectReason::OutOfRange, "ego.v_mps"),
+        7,
+    )
 }
 
 fn dir() -> tempfile::TempDir {
@@ -49,7 +64,11 @@ fn recorded_exchanges_are_read_back_paired() {
         assert_eq!(e.request, request(1 + s % 2, s));
         assert_eq!(e.response, (s % 3 != 0).then(|| response(1 + s % 2, s)));
     }
-    let topics: Vec<String> = read_messages(&path).expect("read").into_iter().map(|m| m.topic).collect();
+    let topics: Vec<String> = read_messages(&path)
+        .expect("read")
+        .into_iter()
+        .map(|m| m.topic)
+        .collect();
     assert_eq!(topics.iter().filter(|t| *t == STATS_TOPIC).count(), 1);
 }
 
@@ -70,7 +89,10 @@ fn a_full_channel_drops_and_counts_instead_of_blocking() {
 fn rotation_by_size_splits_into_complete_files() {
     let d = dir();
     let path = d.path().join("big.mcap");
-    let rotation = Rotation { max_bytes: Some(20_000), max_duration: None };
+    let rotation = Rotation {
+        max_bytes: Some(20_000),
+        max_duration: None,
+    };
     let mut sink = McapSink::create(&path, PLANNER_CHANNELS.to_vec(), rotation).expect("sink");
     for s in 0..200 {
         sink.write_json(0, s * 1000, &request(1, s)).expect("written");
@@ -116,7 +138,8 @@ fn bad_files_are_typed_errors() {
     let wrong = d.path().join("wrong.mcap");
     let mut sink = McapSink::create(&wrong, PLANNER_CHANNELS.to_vec(), Rotation::default()).expect("sink");
     sink.write_json(0, 0, &request(1, 0)).expect("written");
-    sink.write_json(1, 1, &serde_json::json!({ "version": 2 })).expect("written");
+    sink.write_json(1, 1, &serde_json::json!({ "version": 2 }))
+        .expect("written");
     sink.finish().expect("finished");
     match read_exchanges(&[wrong]) {
         Err(RecordingError::Decode { topic, index, .. }) => {
