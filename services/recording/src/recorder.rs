@@ -71,9 +71,12 @@ enum Record {
     Stop,
 }
 
+/// The writer thread: it returns the files written and the message count.
+type WriterThread = JoinHandle<Result<(Vec<PathBuf>, u64)>>;
+
 struct Shared {
     dropped: AtomicU64,
-    thread: Mutex<Option<JoinHandle<Result<(Vec<PathBuf>, u64)>>>>,
+    thread: Mutex<Option<WriterThread>>,
     /// Wall clock and monotonic clock at the start: log times are wall-clock nanoseconds.
     anchor: (Instant, u64),
 }
