@@ -40,6 +40,8 @@ pub struct ServiceConfig {
     pub max_deadline: Duration,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
+    /// Records every decoded request and its answer (`planner serve --record`).
+    pub recorder: Option<recording::PlanRecorder>,
 }
 
 impl Default for ServiceConfig {
@@ -50,6 +52,7 @@ impl Default for ServiceConfig {
             queue_capacity: QUEUE_PER_WORKER * workers,
             max_deadline: DEFAULT_DEADLINE,
             inject_solve_delay: Duration::ZERO,
+            recorder: None,
         }
     }
 }
@@ -246,6 +249,10 @@ impl Service {
 
     /// Submits a decoded request. The reply is called exactly once.
     pub fn submit(&self, request: PlanRequest, arrival: Instant, reply: Reply) {
+        let reply: Reply = match &self.config.recorder {
+            Some(recorder) if !request.is_probe() => Box::new(recorder.wrap_reply(&request, arrival, reply)),
+            _ => reply,
+        };
         // Wire-level checks the decoder does not make (enum ranges, ...); a probe fails them.
         if let Err(rejected) = request.validate() {
             let response = PlanResponse::rejected(
