@@ -1,8 +1,9 @@
 //! The planner service's library side: the solver benchmark, the transport-free service core
-//! (worker pool, watchdog, statistics) and its front ends: iceoryx2 (same machine, shared
+//! (worker pool, fair queue, watchdog, statistics) and its front ends: iceoryx2 (same machine, shared
 //! memory) and Zenoh (across machines).
 
 pub mod bench;
+pub mod fair_queue;
 pub mod iceoryx2_front;
 pub mod service;
 pub mod zenoh_front;
