@@ -147,12 +147,6 @@ impl RateLimiter {
     }
 }
 
-/// Default rate limit: twenty times a vehicle's 2.5 Hz, and a burst of a second's worth.
-pub const DEFAULT_RATE_LIMIT: RateLimit = RateLimit {
-    per_second: 50.0,
-    burst: 50.0,
-};
-
 #[cfg(test)]
 mod tests {
     use std::time::Duration;

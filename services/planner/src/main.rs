@@ -88,8 +88,9 @@ struct ServeArgs {
     #[arg(long, default_value_t = planner::service::QUEUE_PER_VEHICLE)]
     vehicle_queue: usize,
     /// Requests per second one vehicle id may send (also the burst); beyond that the fallback
-    /// answers at once. 0: no limit.
-    #[arg(long, default_value_t = planner::fair_queue::DEFAULT_RATE_LIMIT.per_second)]
+    /// answers at once. 0 (the default): no limit; deployments set it (e.g. 50), simulations
+    /// that run faster than real time must not.
+    #[arg(long, default_value_t = 0.0)]
     vehicle_rate_limit: f64,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]

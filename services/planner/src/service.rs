@@ -25,7 +25,7 @@ use protocol::{PlanRequest, PlanResponse, WireFormat, DEFAULT_DEADLINE};
 use serde::Serialize;
 use stats::{LayerCounts, Percentiles};
 
-use crate::fair_queue::{FairQueue, RateLimit, RateLimiter, DEFAULT_RATE_LIMIT};
+use crate::fair_queue::{FairQueue, RateLimit, RateLimiter};
 
 /// Default queue places per worker. Solves take about a millisecond (p99 ~2 ms), so a full
 /// queue still drains well inside the 400 ms deadline, while bursts of simultaneous requests
@@ -62,7 +62,8 @@ impl Default for ServiceConfig {
             workers,
             queue_capacity: QUEUE_PER_WORKER * workers,
             per_vehicle_queue: QUEUE_PER_VEHICLE,
-            rate_limit: Some(DEFAULT_RATE_LIMIT),
+            // Off by default: simulations ask faster than real time (docs/service.md).
+            rate_limit: None,
             max_deadline: DEFAULT_DEADLINE,
             inject_solve_delay: Duration::ZERO,
         }
