@@ -109,6 +109,14 @@ struct ServeArgs {
     /// Start a new file after this long, e.g. `1h`.
     #[arg(long, value_parser = humantime::parse_duration, requires = "record")]
     record_rotate_every: Option<Duration>,
+    /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
+    #[arg(long, default_value_t = planner::service::QUEUE_PER_VEHICLE)]
+    vehicle_queue: usize,
+    /// Requests per second one vehicle id may send (also the burst); beyond that the fallback
+    /// answers at once. 0 (the default): no limit; deployments set it (e.g. 50), simulations
+    /// that run faster than real time must not.
+    #[arg(long, default_value_t = 0.0)]
+    vehicle_rate_limit: f64,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
@@ -124,6 +132,11 @@ fn service_config(args: &ServeArgs) -> ServiceConfig {
     if let Some(q) = args.queue_capacity {
         config.queue_capacity = q.max(1);
     }
+    config.per_vehicle_queue = args.vehicle_queue.max(1);
+    config.rate_limit = (args.vehicle_rate_limit > 0.0).then_some(planner::fair_queue::RateLimit {
+        per_second: args.vehicle_rate_limit,
+        burst: args.vehicle_rate_limit.max(1.0),
+    });
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
     config
 }
@@ -357,6 +370,10 @@ fn main() -> Result<()> {
         Command::Serve(_) => "info,zenoh=warn",
         _ => "warn",
     });
+    if matches!(cli.command, Command::Serve(_)) {
+        // A vehicle that hangs up mid-answer must not kill the service.
+        supervise::ignore_sigpipe();
+    }
     match cli.command {
         Command::Bench {
             json,
