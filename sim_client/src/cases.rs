@@ -5,7 +5,7 @@ use decision::PlannerConfig;
 use serde::{Deserialize, Serialize};
 use traffic::{Scenario, SimParams, SvBehaviour};
 
-use crate::episode::{run_episode, Driver, Episode, EpisodeSpec};
+use crate::episode::{run_episode_observed, Driver, Episode, EpisodeSpec, StepObserver};
 use crate::error::Result;
 use crate::link::Transport;
 use crate::metrics::EpisodeMetrics;
@@ -45,9 +45,19 @@ pub struct CaseRun {
 
 /// Runs the Case 1 scene with the planner configured by `config`.
 pub fn run_case(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<CaseRun> {
+    run_case_observed(config, transport, seed, &mut ())
+}
+
+/// [`run_case`] with an observer of every simulator step (e.g. a recording).
+pub fn run_case_observed(
+    config: &PlannerConfig,
+    transport: &Transport,
+    seed: u64,
+    observer: &mut dyn StepObserver,
+) -> Result<CaseRun> {
     let spec = case1_spec(seed, config.perception.max_svs);
     let mut link = transport.connect(config.clone())?;
-    let episode = run_episode(&spec, Driver::Planner(link.as_mut()))?;
+    let episode = run_episode_observed(&spec, Driver::Planner(link.as_mut()), observer)?;
     Ok(CaseRun {
         scenario: spec.scenario,
         config: config.clone(),

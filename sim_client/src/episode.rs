@@ -255,8 +255,32 @@ fn record_states(world: &World, out: &mut Vec<VehicleState>) {
     }));
 }
 
+/// Sees (and may change) the world after its initial state and after every low-level step,
+/// before the step is scored: how a recording captures the ground truth and how a log replay
+/// puts the SVs on their recorded trajectories.
+pub trait StepObserver {
+    /// Called with the world after step `world.step_index()`.
+    fn after_step(&mut self, world: &mut World) -> Result<()>;
+}
+
+/// Observes nothing.
+impl StepObserver for () {
+    fn after_step(&mut self, _world: &mut World) -> Result<()> {
+        Ok(())
+    }
+}
+
 /// Runs one episode to its duration or to the first ego collision.
-pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode> {
+pub fn run_episode(spec: &EpisodeSpec, driver: Driver<'_>) -> Result<Episode> {
+    run_episode_observed(spec, driver, &mut ())
+}
+
+/// [`run_episode`] with an observer of every step.
+pub fn run_episode_observed(
+    spec: &EpisodeSpec,
+    mut driver: Driver<'_>,
+    observer: &mut dyn StepObserver,
+) -> Result<Episode> {
     if !(spec.duration_s.is_finite() && spec.duration_s > 0.0) {
         return Err(SimClientError::Config("episode duration must be positive".into()));
     }
@@ -275,6 +299,7 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
         ego_speed_sum: 0.0,
         safety: SafetySummary::default(),
     };
+    observer.after_step(&mut world)?;
     let mut safety = SafetyAccumulator::for_world(&world);
     if spec.record_trajectory {
         record_states(&world, &mut episode.trajectory);
@@ -337,6 +362,7 @@ pub fn run_episode(spec: &EpisodeSpec, mut driver: Driver<'_>) -> Result<Episode
             episode.decisions.push(record);
         }
         let collisions = world.step();
+        observer.after_step(&mut world)?;
         episode.ego_speed_sum += world.ego().v;
         let bodies = Body::all(&world);
         safety.observe(&bodies);

@@ -27,6 +27,9 @@ pub enum SimClientError {
     /// JSON serialisation failed.
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
+    /// An MCAP recording could not be written or read.
+    #[error(transparent)]
+    Recording(#[from] recording::RecordingError),
     /// CSV writing failed.
     #[error("csv: {0}")]
     Csv(#[from] csv::Error),

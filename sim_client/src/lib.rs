@@ -6,7 +6,8 @@
 //! The planner is reached through [`link::PlannerLink`] only. The simulation loop
 //! ([`episode`]), the metrics ([`metrics`]) and the experiment runners ([`cases`],
 //! [`campaign`]) are pure; files are written by [`report`] and [`plot`]. [`load`] measures a
-//! planner process under load (`sim_client load` / `soak`).
+//! planner process under load (`sim_client load` / `soak`). [`record`] writes a trial to MCAP (with a Foxglove scene from
+//! [`scene`]); [`log_replay`] replays a recorded traffic log against the planner.
 
 pub mod campaign;
 pub mod campaign_report;
@@ -16,14 +17,17 @@ pub mod episode;
 pub mod error;
 pub mod link;
 pub mod load;
+pub mod log_replay;
 pub mod metrics;
 pub mod paper;
 pub mod planner_process;
 pub mod plot;
 pub mod prediction;
 pub mod presets;
+pub mod record;
 pub mod report;
 pub mod safety;
+pub mod scene;
 
 pub use connect::Transport;
 pub use error::{Result, SimClientError};

@@ -14,6 +14,8 @@ use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPla
 use sim_client::{cases, report, Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
 
+mod replay_command;
+
 #[derive(Parser)]
 #[command(
     name = "sim_client",
@@ -238,6 +240,18 @@ enum Command {
         seed: u64,
         #[command(flatten)]
         paper: PaperArgs,
+        /// Record the planner's trial (ground truth, decisions, a Foxglove scene) to this
+        /// MCAP file (docs/recording.md).
+        #[arg(long, value_name = "FILE.mcap")]
+        record: Option<PathBuf>,
+    },
+    /// Log replay: the SVs of a recording follow their recorded trajectories, the ego is
+    /// re-planned from its recorded start; scored like a campaign trial.
+    Replay {
+        #[command(flatten)]
+        common: Common,
+        #[command(flatten)]
+        replay: replay_command::ReplayArgs,
     },
     /// Case 2: Case 1 with hysteresis on and off, for the planner and the paper-literal preset.
     Case2 {
@@ -410,10 +424,16 @@ fn run_campaign(
     Ok(())
 }
 
-fn run_case1(common: &Common, seed: u64, paper: &PaperArgs) -> Result<()> {
+fn run_case1(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&std::path::Path>) -> Result<()> {
     let (transport, _planner) = common.open(None)?;
     let config = common.planner_config()?;
-    let case = cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?;
+    let case = match record {
+        Some(path) => cases::Case1 {
+            planner: replay_command::record_case1(&config, &transport, seed, path)?,
+            paper_literal: Some(cases::run_case(&paper.config()?, &Transport::InProcess, seed)?),
+        },
+        None => cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?,
+    };
     let files = report::write_case1(&common.out, &case)?;
     println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
     if let Some(p) = &case.paper_literal {
@@ -503,7 +523,16 @@ fn main() -> Result<()> {
                 .with_context(|| format!("writing {}", part_out.display()))?;
             return Ok(());
         }
-        Command::Case1 { common, seed, paper } => run_case1(&common, seed, &paper)?,
+        Command::Case1 {
+            common,
+            seed,
+            paper,
+            record,
+        } => run_case1(&common, seed, &paper, record.as_deref())?,
+        Command::Replay { common, replay } => {
+            let (transport, _planner) = common.open(None)?;
+            replay_command::run_replay(&replay, &transport, &common.planner_config()?)?;
+        }
         Command::Case2 { common, seed, paper } => run_case2(&common, seed, &paper)?,
         Command::Campaign {
             common,

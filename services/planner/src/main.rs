@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use decision::PlannerConfig;
 use planner::service::{Service, ServiceConfig, QUEUE_PER_WORKER};
+use recording::{PlanRecorder, RecorderOptions, Rotation};
 use tokio::sync::oneshot;
 use transport::iceoryx2::{ServerOptions, WaitMode};
 
@@ -59,6 +60,19 @@ enum Command {
     /// `hmdp/planner/plan`, statistics on `hmdp/planner/stats`) until SIGINT or SIGTERM.
     /// See docs/service.md.
     Serve(ServeArgs),
+    /// Re-decide every request of a recording (`serve --record`) and compare with the recorded
+    /// answers; exit code 1 on any difference. See docs/recording.md.
+    Replay {
+        /// The recording; the files of a rotated recording in order.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Planner configuration (TOML) to decide with; built-in defaults when absent.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Which ego action set a benchmark sweeps.
@@ -109,6 +123,25 @@ struct ServeArgs {
     /// (default: 32 per worker).
     #[arg(long)]
     queue_capacity: Option<usize>,
+    /// Record every request, every answer and the statistics to this MCAP file (see
+    /// docs/recording.md); never delays an answer: records the writer cannot take are dropped
+    /// and counted.
+    #[arg(long, value_name = "FILE.mcap")]
+    record: Option<PathBuf>,
+    /// Start a new file (FILE.1.mcap, ...) after this many MiB of messages.
+    #[arg(long, value_name = "MIB", requires = "record")]
+    record_rotate_mib: Option<u64>,
+    /// Start a new file after this long, e.g. `1h`.
+    #[arg(long, value_parser = humantime::parse_duration, requires = "record")]
+    record_rotate_every: Option<Duration>,
+    /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
+    #[arg(long, default_value_t = planner::service::QUEUE_PER_VEHICLE)]
+    vehicle_queue: usize,
+    /// Requests per second one vehicle id may send (also the burst); beyond that the fallback
+    /// answers at once. 0 (the default): no limit; deployments set it (e.g. 50), simulations
+    /// that run faster than real time must not.
+    #[arg(long, default_value_t = 0.0)]
+    vehicle_rate_limit: f64,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
@@ -124,6 +157,11 @@ fn service_config(args: &ServeArgs) -> ServiceConfig {
     if let Some(q) = args.queue_capacity {
         config.queue_capacity = q.max(1);
     }
+    config.per_vehicle_queue = args.vehicle_queue.max(1);
+    config.rate_limit = (args.vehicle_rate_limit > 0.0).then_some(planner::fair_queue::RateLimit {
+        per_second: args.vehicle_rate_limit,
+        burst: args.vehicle_rate_limit.max(1.0),
+    });
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
     config
 }
@@ -230,7 +268,21 @@ fn serve(args: ServeArgs) -> Result<()> {
     } else {
         None
     };
+    let mut config = config;
+    config.recorder = match &args.record {
+        Some(path) => {
+            let mut options = RecorderOptions::new(path);
+            options.rotation = Rotation {
+                max_bytes: args.record_rotate_mib.map(|m| m.saturating_mul(1 << 20)),
+                max_duration: args.record_rotate_every,
+            };
+            tracing::info!(file = %path.display(), "recording");
+            Some(PlanRecorder::start(&options).with_context(|| format!("recording to {}", path.display()))?)
+        }
+        None => None,
+    };
     let service = Arc::new(Service::start(planner_config, config.clone())?);
+    let stats_recording = config.recorder.clone().map(|r| record_stats(r, service.stats()));
     tracing::info!(
         workers = config.workers,
         queue = config.queue_capacity,
@@ -266,7 +318,75 @@ fn serve(args: ServeArgs) -> Result<()> {
     drop(service);
     let snapshot = stats.snapshot();
     tracing::info!(stats = %serde_json::to_string(&snapshot).unwrap_or_default(), "final statistics");
+    if let (Some(recorder), Some((stop, thread))) = (config.recorder, stats_recording) {
+        stop.store(true, Ordering::Relaxed);
+        let _ = thread.join();
+        recorder.stats(&snapshot);
+        let summary = recorder.finish()?;
+        tracing::info!(
+            files = ?summary.files,
+            messages = summary.messages,
+            dropped = summary.dropped,
+            "recording finished"
+        );
+    }
     result
+}
+
+/// Records the statistics document every second, as the Zenoh front publishes it, and warns
+/// when records were dropped.
+fn record_stats(recorder: PlanRecorder, stats: Arc<planner::service::Stats>) -> (Arc<AtomicBool>, JoinHandle<()>) {
+    let stop = Arc::new(AtomicBool::new(false));
+    let stopped = Arc::clone(&stop);
+    let thread = std::thread::spawn(move || {
+        let mut dropped = 0;
+        let mut next = std::time::Instant::now();
+        while !stopped.load(Ordering::Relaxed) {
+            next += Duration::from_secs(1);
+            while std::time::Instant::now() < next && !stopped.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            recorder.stats(&stats.snapshot());
+            if recorder.dropped() > dropped {
+                dropped = recorder.dropped();
+                tracing::warn!(dropped, "the recorder is behind: records dropped");
+            }
+        }
+    });
+    (stop, thread)
+}
+
+/// Runs `planner replay`: the exit code is 1 when any answer differs.
+fn replay(files: &[PathBuf], config: Option<&std::path::Path>, json: bool) -> Result<i32> {
+    let config = supervise::planner_config(config)?;
+    let exchanges = recording::read_exchanges(files)?;
+    let report = planner::replay::replay(&config, &exchanges)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "compared {}: identical {}, different {} (other layer {}); watchdog answers {}, unanswered {}, answers without request {}",
+            report.compared,
+            report.identical,
+            report.different,
+            report.layer_different,
+            report.watchdog_answers,
+            report.unanswered,
+            report.unmatched_responses
+        );
+        for d in &report.first_differences {
+            println!(
+                "  #{} vehicle {} sequence {}: {} differ\n    recorded: {}\n    replayed: {}",
+                d.index,
+                d.vehicle_id,
+                d.sequence,
+                d.fields.join(", "),
+                d.recorded,
+                d.replayed
+            );
+        }
+    }
+    Ok(if report.all_identical() { 0 } else { 1 })
 }
 
 fn main() -> Result<()> {
@@ -275,6 +395,10 @@ fn main() -> Result<()> {
         Command::Serve(_) => "info,zenoh=warn",
         _ => "warn",
     });
+    if matches!(cli.command, Command::Serve(_)) {
+        // A vehicle that hangs up mid-answer must not kill the service.
+        supervise::ignore_sigpipe();
+    }
     match cli.command {
         Command::Bench {
             json,
@@ -337,6 +461,12 @@ fn main() -> Result<()> {
         }
         Command::DefaultConfig => print!("{}", PlannerConfig::default().to_toml_string()),
         Command::Serve(args) => serve(args)?,
+        Command::Replay { files, config, json } => {
+            let code = replay(&files, config.as_deref(), json)?;
+            if code != 0 {
+                std::process::exit(code);
+            }
+        }
     }
     Ok(())
 }

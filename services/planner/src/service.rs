@@ -4,6 +4,8 @@
 //! * [`Service::handle_bytes`] / [`Service::submit`] take a request and a reply callback; the
 //!   callback is called **exactly once** (by a worker, by the watchdog, or at once for
 //!   malformed input, rejected input and overload), never blocks the caller.
+//! * Requests wait in a [`FairQueue`] (round-robin across vehicle ids, a share per vehicle)
+//!   behind a per-vehicle [`RateLimiter`]: one vehicle that floods cannot starve the others.
 //! * Each worker thread owns a [`decision::Planner`] (not `Send`: built on its thread).
 //! * The watchdog thread answers `decision::fallback_only` marked
 //!   [`protocol::Layer::WatchdogFallback`] when a deadline runs out, interrupts the running HiGHS solve
@@ -12,8 +14,8 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -23,11 +25,17 @@ use protocol::{PlanRequest, PlanResponse, WireFormat, DEFAULT_DEADLINE};
 use serde::Serialize;
 use stats::{LayerCounts, Percentiles};
 
+use crate::fair_queue::{FairQueue, RateLimit, RateLimiter};
+
 /// Default queue places per worker. Solves take about a millisecond (p99 ~2 ms), so a full
 /// queue still drains well inside the 400 ms deadline, while bursts of simultaneous requests
 /// (many vehicles, Zenoh delivering in batches) are solved instead of answered by the
 /// overload fallback. A request that waits too long still gets the watchdog's answer on time.
 pub const QUEUE_PER_WORKER: usize = 32;
+
+/// Default queue places one vehicle may hold: a vehicle asks once per 0.4 s and waits for
+/// the answer, so more than a few queued requests of one id are a flood.
+pub const QUEUE_PER_VEHICLE: usize = 8;
 
 /// Settings of the service core.
 #[derive(Debug, Clone)]
@@ -36,10 +44,17 @@ pub struct ServiceConfig {
     pub workers: usize,
     /// Requests that may wait for a worker; beyond that the fallback answers at once.
     pub queue_capacity: usize,
+    /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
+    pub per_vehicle_queue: usize,
+    /// Requests per second (and burst) one vehicle id may send; beyond that the fallback
+    /// answers at once. `None`: no limit.
+    pub rate_limit: Option<RateLimit>,
     /// Upper bound of every deadline (a request may ask for a shorter one).
     pub max_deadline: Duration,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
+    /// Records every decoded request and its answer (`planner serve --record`).
+    pub recorder: Option<recording::PlanRecorder>,
 }
 
 impl Default for ServiceConfig {
@@ -48,8 +63,12 @@ impl Default for ServiceConfig {
         Self {
             workers,
             queue_capacity: QUEUE_PER_WORKER * workers,
+            per_vehicle_queue: QUEUE_PER_VEHICLE,
+            // Off by default: simulations ask faster than real time (docs/service.md).
+            rate_limit: None,
             max_deadline: DEFAULT_DEADLINE,
             inject_solve_delay: Duration::ZERO,
+            recorder: None,
         }
     }
 }
@@ -85,6 +104,7 @@ impl JobState {
 struct Counters {
     probes: u64,
     overloaded: u64,
+    rate_limited: u64,
     late_discarded: u64,
 }
 
@@ -112,8 +132,12 @@ pub struct StatsSnapshot {
     pub by_layer: LayerCounts,
     /// Readiness probes answered (not counted in `answered` nor as rejections).
     pub probes: u64,
-    /// Fallback answers given because the queue was full (also counted in `watchdog_fallback`).
+    /// Fallback answers given because the queue, or the vehicle's share of it, was full
+    /// (also counted in `watchdog_fallback`).
     pub overloaded: u64,
+    /// Fallback answers given because the vehicle exceeded its rate limit (also counted in
+    /// `watchdog_fallback`).
+    pub rate_limited: u64,
     /// Worker results that arrived after the watchdog had answered.
     pub late_discarded: u64,
     /// Arrival to answer.
@@ -158,6 +182,7 @@ impl Stats {
             by_layer: s.by_layer,
             probes: s.counters.probes,
             overloaded: s.counters.overloaded,
+            rate_limited: s.counters.rate_limited,
             late_discarded: s.counters.late_discarded,
             latency: Percentiles::of_histogram(&s.latency),
             solve: Percentiles::of_histogram(&s.solve),
@@ -165,11 +190,50 @@ impl Stats {
     }
 }
 
+/// The requests waiting for a worker, shared by the submitters and the workers.
+struct WorkQueue {
+    state: Mutex<QueueState>,
+    /// Signalled when a job is queued or the queue closes.
+    ready: Condvar,
+}
+
+struct QueueState {
+    jobs: FairQueue<Arc<JobState>>,
+    /// No more jobs come; workers drain what is queued and stop.
+    closed: bool,
+}
+
+impl WorkQueue {
+    fn lock(&self) -> std::sync::MutexGuard<'_, QueueState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The next job, waiting for one; `None` once closed and drained.
+    fn next(&self) -> Option<Arc<JobState>> {
+        let mut state = self.lock();
+        loop {
+            if let Some(job) = state.jobs.pop() {
+                return Some(job);
+            }
+            if state.closed {
+                return None;
+            }
+            state = self.ready.wait(state).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    fn close(&self) {
+        self.lock().closed = true;
+        self.ready.notify_all();
+    }
+}
+
 /// The service core. Dropping it (or [`Service::shutdown`]) stops the threads.
 pub struct Service {
     planner_config: Arc<PlannerConfig>,
     config: ServiceConfig,
-    queue: Option<SyncSender<Arc<JobState>>>,
+    queue: Arc<WorkQueue>,
+    limiter: Option<Mutex<RateLimiter>>,
     watchdog: Option<mpsc::Sender<Arc<JobState>>>,
     stats: Arc<Stats>,
     threads: Vec<JoinHandle<()>>,
@@ -181,12 +245,17 @@ impl Service {
         let planner_config = Arc::new(planner_config);
         let stats = Arc::new(Stats::new());
         let workers = config.workers.max(1);
-        let (queue_tx, queue_rx) = mpsc::sync_channel::<Arc<JobState>>(config.queue_capacity.max(1));
-        let queue_rx = Arc::new(Mutex::new(queue_rx));
+        let queue = Arc::new(WorkQueue {
+            state: Mutex::new(QueueState {
+                jobs: FairQueue::new(config.queue_capacity, config.per_vehicle_queue),
+                closed: false,
+            }),
+            ready: Condvar::new(),
+        });
         let mut threads = Vec::new();
         let (ready_tx, ready_rx) = mpsc::channel::<Result<(), String>>();
         for i in 0..workers {
-            let rx = Arc::clone(&queue_rx);
+            let rx = Arc::clone(&queue);
             let cfg = Arc::clone(&planner_config);
             let stats = Arc::clone(&stats);
             let ready = ready_tx.clone();
@@ -217,8 +286,9 @@ impl Service {
         }
         Ok(Self {
             planner_config,
+            limiter: config.rate_limit.map(|limit| Mutex::new(RateLimiter::new(limit))),
             config,
-            queue: Some(queue_tx),
+            queue,
             watchdog: Some(wd_tx),
             stats,
             threads,
@@ -246,6 +316,10 @@ impl Service {
 
     /// Submits a decoded request. The reply is called exactly once.
     pub fn submit(&self, request: PlanRequest, arrival: Instant, reply: Reply) {
+        let reply: Reply = match &self.config.recorder {
+            Some(recorder) if !request.is_probe() => Box::new(recorder.wrap_reply(&request, arrival, reply)),
+            _ => reply,
+        };
         // Wire-level checks the decoder does not make (enum ranges, ...); a probe fails them.
         if let Err(rejected) = request.validate() {
             let response = PlanResponse::rejected(
@@ -266,21 +340,31 @@ impl Service {
             abandoned: AtomicBool::new(false),
             solving: Mutex::new(None),
         });
-        let Some(queue) = &self.queue else {
-            answer_fallback(&self.planner_config, &job, &self.stats);
-            return;
-        };
-        match queue.try_send(Arc::clone(&job)) {
-            Ok(()) => {
-                if let Some(wd) = &self.watchdog {
-                    let _ = wd.send(job);
-                }
-            }
-            Err(TrySendError::Full(job)) | Err(TrySendError::Disconnected(job)) => {
-                self.stats.lock().counters.overloaded += 1;
-                job.abandoned.store(true, Ordering::SeqCst);
+        let vehicle = job.request.vehicle_id;
+        if let Some(limiter) = &self.limiter {
+            if !limiter
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .allow(vehicle, arrival)
+            {
+                self.stats.lock().counters.rate_limited += 1;
                 answer_fallback(&self.planner_config, &job, &self.stats);
+                return;
             }
+        }
+        let queued = {
+            let mut state = self.queue.lock();
+            !state.closed && state.jobs.push(vehicle, Arc::clone(&job)).is_ok()
+        };
+        if queued {
+            self.queue.ready.notify_one();
+            if let Some(wd) = &self.watchdog {
+                let _ = wd.send(job);
+            }
+        } else {
+            self.stats.lock().counters.overloaded += 1;
+            job.abandoned.store(true, Ordering::SeqCst);
+            answer_fallback(&self.planner_config, &job, &self.stats);
         }
     }
 
@@ -296,7 +380,7 @@ impl Service {
 
     /// Stops accepting work and joins the threads (queued jobs are still answered).
     pub fn shutdown(&mut self) {
-        self.queue = None;
+        self.queue.close();
         self.watchdog = None;
         for t in self.threads.drain(..) {
             let _ = t.join();
@@ -324,7 +408,7 @@ fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats) -> boo
 
 fn worker(
     config: &PlannerConfig,
-    queue: &Mutex<Receiver<Arc<JobState>>>,
+    queue: &WorkQueue,
     stats: &Stats,
     inject_delay: Duration,
     ready: &mpsc::Sender<Result<(), String>>,
@@ -341,13 +425,7 @@ fn worker(
     };
     let handle = planner.interrupt_handle();
     loop {
-        let job = {
-            let rx = queue.lock().unwrap_or_else(|e| e.into_inner());
-            match rx.recv() {
-                Ok(job) => job,
-                Err(_) => return,
-            }
-        };
+        let Some(job) = queue.next() else { return };
         if job.abandoned.load(Ordering::SeqCst) {
             continue;
         }

@@ -1,6 +1,7 @@
 //! What every binary of the project does the same way.
 //!
-//! * [`init_process`]: SIGPIPE back to its default and logging to stderr.
+//! * [`init_process`]: SIGPIPE back to its default and logging to stderr;
+//!   [`ignore_sigpipe`] for the services.
 //! * [`termination_signal`]: SIGINT or SIGTERM, for the services.
 //! * [`planner_config`]: the planner's TOML configuration file, or the defaults.
 //! * [`Supervised`]: a child process that stops (SIGTERM, then SIGKILL) when dropped and can
@@ -34,6 +35,17 @@ pub fn init_process(default_filter: &str) {
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
+}
+
+/// Ignores SIGPIPE, for the long-running services: a peer that closes its socket while an
+/// answer is being written must cost that write an `EPIPE` error, never the process. Call it
+/// right after [`init_process`], before any thread exists.
+pub fn ignore_sigpipe() {
+    // SAFETY: sets a signal disposition; no other thread exists yet.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN)
+    };
 }
 
 /// Resolves on the first SIGINT or SIGTERM (systemd stops services with SIGTERM).

@@ -29,12 +29,15 @@ pub enum Mode {
 /// replace the file's.
 pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[String]) -> Result<Config, ChannelError> {
     let Some(path) = file else {
-        let json = serde_json::json!({
+        let mut json = serde_json::json!({
             "mode": match mode { Mode::Peer => "peer", Mode::Client => "client" },
             "listen": { "endpoints": listen },
             "connect": { "endpoints": connect },
             "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
         });
+        json.as_object_mut()
+            .expect("an object")
+            .extend(hardening().as_object().expect("an object").clone());
         return Config::from_json5(&json.to_string()).map_err(|source| ChannelError::ZenohConfig {
             what: "built-in".into(),
             source,
@@ -56,6 +59,34 @@ pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[Str
         }
     }
     Ok(config)
+}
+
+/// Largest Zenoh message any session of the project accepts (a request is at most a few
+/// KiB, see docs/protocol.md). Zenoh's own default is 1 GiB: a peer could make the planner
+/// buffer that much for one query. A larger message is dropped while it is reassembled,
+/// fragment by fragment, never buffered whole.
+pub const MAX_MESSAGE_SIZE: usize = 64 * 1024;
+
+/// The settings every Zenoh configuration of the project carries (the built-in ones here,
+/// and every file in `deploy/zenoh/`, checked by a test):
+///
+/// * `transport/link/rx/max_message_size` = [`MAX_MESSAGE_SIZE`];
+/// * queries on `hmdp/planner/plan` arriving at a session are re-marked congestion control
+///   *drop*. A reply inherits its query's congestion control, and a querier may ask for
+///   *block*: then one peer that stops reading its socket blocks the replier's sending for
+///   seconds (until Zenoh closes that transport), and every other vehicle with it. With
+///   *drop*, replies to a peer that does not read are dropped; nobody else waits.
+pub fn hardening() -> serde_json::Value {
+    serde_json::json!({
+        "transport": { "link": { "rx": { "max_message_size": MAX_MESSAGE_SIZE } } },
+        "qos": { "network": [{
+            "id": "plan-replies-never-block",
+            "messages": ["query"],
+            "key_exprs": [ZENOH_PLAN_KEY],
+            "flows": ["ingress", "egress"],
+            "overwrite": { "congestion_control": "drop" },
+        }] },
+    })
 }
 
 /// The configuration of a client connecting to `endpoint` only.
@@ -205,5 +236,47 @@ impl PlanChannel for ZenohChannel {
 
     fn name(&self) -> &'static str {
         "zenoh"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The hardening in a configuration: the message size bound and the droppable queries.
+    fn assert_hardened(config: &Config, what: &str) {
+        let size = config.get_json("transport/link/rx/max_message_size").unwrap();
+        assert_eq!(size, MAX_MESSAGE_SIZE.to_string(), "{what}: max_message_size");
+        let qos: serde_json::Value = serde_json::from_str(&config.get_json("qos/network").unwrap()).unwrap();
+        let rule = qos
+            .as_array()
+            .and_then(|rules| rules.iter().find(|r| r["id"] == "plan-replies-never-block"))
+            .unwrap_or_else(|| panic!("{what}: no qos rule plan-replies-never-block in {qos}"));
+        assert_eq!(rule["overwrite"]["congestion_control"], "drop", "{what}");
+        assert_eq!(rule["messages"], serde_json::json!(["query"]), "{what}");
+        assert_eq!(rule["key_exprs"], serde_json::json!([ZENOH_PLAN_KEY]), "{what}");
+    }
+
+    #[test]
+    fn built_in_configurations_are_hardened() {
+        for mode in [Mode::Peer, Mode::Client] {
+            let config = config(mode, None, &["tcp/127.0.0.1:7447".into()], &[]).unwrap();
+            assert_hardened(&config, &format!("{mode:?}"));
+        }
+    }
+
+    #[test]
+    fn every_shipped_configuration_is_hardened() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy/zenoh");
+        let mut checked = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "json5") {
+                let config = Config::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert_hardened(&config, &path.display().to_string());
+                checked += 1;
+            }
+        }
+        assert!(checked >= 6, "only {checked} files in {}", dir.display());
     }
 }

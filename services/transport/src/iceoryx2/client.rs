@@ -46,6 +46,9 @@ pub struct Exchange {
     /// Answers beyond the first (the protocol allows exactly one: always 0 with a correct
     /// planner).
     pub extra_responses: usize,
+    /// Answers that carried another vehicle id or sequence than the request's: never taken
+    /// as the answer (0 with a correct planner).
+    pub mismatched: usize,
     /// Planners connected when the request was sent (0: nobody serves, the request went
     /// nowhere and the call returned at once).
     pub servers: usize,
@@ -122,19 +125,22 @@ impl Client {
     }
 
     /// Sends `request` (written straight into shared memory) and waits up to `wait` for the
-    /// answer. A late answer to an earlier request is never taken for this one.
+    /// answer. A late answer to an earlier request is never taken for this one, nor an answer
+    /// whose vehicle id and sequence are not the request's (counted in `mismatched`).
     pub fn request(&mut self, request: PlanRequest, wait: Duration) -> Result<Exchange, TransportError> {
         let deadline = Instant::now() + wait;
+        let expected = (request.vehicle_id, request.sequence);
         let slot = self.port.loan_uninit().map_err(send("loaning a request"))?;
         let pending = slot.write_payload(request).send().map_err(send("request"))?;
         let servers = pending.number_of_server_connections();
-        let unanswered = Exchange {
+        let mut exchange = Exchange {
             response: None,
             extra_responses: 0,
+            mismatched: 0,
             servers,
         };
         if servers == 0 {
-            return Ok(unanswered);
+            return Ok(exchange);
         }
         self.requests.notify().map_err(send("request event"))?;
         let spin_until = match self.wait {
@@ -142,22 +148,28 @@ impl Client {
             WaitMode::BusyPoll { window } => Some(Instant::now() + window),
         };
         loop {
-            if let Some(first) = pending.receive().map_err(receive("response"))? {
-                let response = first.payload().clone();
-                drop(first);
-                let mut extra_responses = 0;
-                while let Ok(Some(_)) = pending.receive() {
-                    extra_responses += 1;
+            while let Some(sample) = pending.receive().map_err(receive("response"))? {
+                let response = sample.payload().clone();
+                drop(sample);
+                if (response.vehicle_id, response.sequence) != expected {
+                    tracing::warn!(
+                        expected = ?expected,
+                        got = ?(response.vehicle_id, response.sequence),
+                        "an answer for another request: ignored"
+                    );
+                    exchange.mismatched += 1;
+                } else if exchange.response.is_none() {
+                    exchange.response = Some(response);
+                } else {
+                    exchange.extra_responses += 1;
                 }
-                return Ok(Exchange {
-                    response: Some(response),
-                    extra_responses,
-                    servers,
-                });
+            }
+            if exchange.response.is_some() {
+                return Ok(exchange);
             }
             let now = Instant::now();
             if now >= deadline {
-                return Ok(unanswered);
+                return Ok(exchange);
             }
             if spin_until.is_some_and(|until| now < until) {
                 // Yielding keeps the core for a runnable thread (a solver) when there is one.

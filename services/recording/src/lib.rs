@@ -1,0 +1,30 @@
+//! MCAP recordings of the planner's traffic and of simulated trials.
+//!
+//! * [`McapSink`]: a synchronous MCAP writer with one channel per message kind (JSON messages,
+//!   a JSON Schema per type, so that Foxglove shows them without plugins) and rotation by
+//!   size or time.
+//! * [`PlanRecorder`]: the service's recorder. Requests and answers go through a bounded
+//!   channel to a writer thread; a full channel drops the record and counts it, so that
+//!   recording never blocks the answer path.
+//! * [`read_messages`] / [`read_exchanges`]: the reader used by `planner replay` and
+//!   `sim_client replay`; a corrupt, truncated or foreign file is a [`RecordingError`].
+//!
+//! Channels and schemas are listed in `docs/recording.md`.
+
+mod error;
+mod reader;
+mod recorder;
+pub mod schema;
+mod sink;
+
+pub use error::{RecordingError, Result};
+pub use reader::{read_exchanges, read_messages, Exchange, Exchanges, RecordedMessage};
+pub use recorder::{PlanRecorder, RecorderOptions, RecordingSummary, PLANNER_CHANNELS};
+pub use sink::{ChannelSpec, McapSink, Rotation};
+
+/// Topic of the requests as the planner received them.
+pub const REQUEST_TOPIC: &str = "/planner/request";
+/// Topic of the planner's answers.
+pub const RESPONSE_TOPIC: &str = "/planner/response";
+/// Topic of the statistics documents (those published on `hmdp/planner/stats`).
+pub const STATS_TOPIC: &str = "/planner/stats";
