@@ -7,8 +7,8 @@ use decision::{
 };
 
 /// One lane, the ego at `v_ego` with a leader at 22 m/s `gap_m` ahead (bumper to bumper), in
-/// corrective mode with the release distance frozen at 40 m.
-fn following(v_ego: f64, gap_m: f64) -> Situation {
+/// corrective mode with the release distance frozen at `release_m`.
+fn following(v_ego: f64, gap_m: f64, release_m: f64) -> Situation {
     let length = PlannerConfig::default().vehicle.length_m;
     Situation {
         road: Road {
@@ -27,8 +27,8 @@ fn following(v_ego: f64, gap_m: f64) -> Situation {
         memory: PlannerMemory {
             corrective: vec![CorrectiveEntry {
                 sv_id: 1,
-                release_m: 40.0,
-                trigger_m: 34.0,
+                release_m,
+                trigger_m: release_m - 6.0,
             }],
             previous_plan: Vec::new(),
         },
@@ -46,9 +46,10 @@ fn first_accel(anticipation_s: f64, s: &Situation) -> f64 {
 
 #[test]
 fn an_ego_closing_in_brakes_earlier_with_anticipation() {
-    // 4 m/s faster than the leader, 3 m beyond the release distance: the plain band is met for
-    // most of the 1.2 s horizon, the anticipated one (8 m of closing) is not.
-    let s = following(26.0, 43.0);
+    // 2 m/s faster than the leader, 2 m beyond the release distance of 70 m and well beyond
+    // its IDM distance (about 52 m): the plain band is met for most of the 1.2 s horizon, the
+    // anticipated one (4 m of closing) is not.
+    let s = following(24.0, 72.0, 70.0);
     let plain = first_accel(0.0, &s);
     let anticipated = first_accel(2.0, &s);
     assert!(anticipated < plain - 0.1, "anticipated {anticipated}, plain {plain}");
@@ -63,7 +64,7 @@ fn an_ego_closing_in_brakes_earlier_with_anticipation() {
 fn an_ego_falling_back_is_not_pushed_to_brake() {
     // 2 m/s slower than the leader, 2 m inside the release distance: the gap opens by 4 m
     // within the anticipation time, so the band asks for nothing more.
-    let s = following(20.0, 38.0);
+    let s = following(20.0, 38.0, 40.0);
     let anticipated = first_accel(2.0, &s);
     assert!(anticipated > -0.3, "no braking: {anticipated}");
 }
