@@ -60,7 +60,7 @@ fn invalid_configs_are_rejected() {
         })
     ));
     assert!(matches!(
-        PlannerConfig::from_toml_str("[cost]\nw_global = 2.0\n"),
+        PlannerConfig::from_toml_str("[cost]\nw_global = 1.0\n"),
         Err(ConfigError::Invalid { .. })
     ));
     assert!(matches!(

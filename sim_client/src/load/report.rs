@@ -226,8 +226,8 @@ impl LoadReport {
         if let Some(p) = &self.planner {
             if p.rss_growth_percent > max_rss_growth_percent {
                 v.push(format!(
-                    "planner RSS grew {:.1} % after the warm-up ({} -> {} KiB)",
-                    p.rss_growth_percent, p.rss_after_warmup_kib, p.rss_max_after_warmup_kib
+                    "planner RSS grew {:.1} % after the warm-up (median {} -> {} KiB)",
+                    p.rss_growth_percent, p.rss_after_warmup_kib, p.rss_end_kib
                 ));
             }
         }
@@ -263,8 +263,13 @@ impl LoadReport {
         }
         if let Some(p) = &self.planner {
             out += &format!(
-                "  planner pid {}: CPU mean {:.1} % of a core, RSS after warm-up {} KiB, max {} KiB (growth {:.2} %)\n",
-                p.pid, p.cpu_mean_percent, p.rss_after_warmup_kib, p.rss_max_after_warmup_kib, p.rss_growth_percent
+                "  planner pid {}: CPU mean {:.1} % of a core, RSS after warm-up {} KiB, at the end {} KiB, max {} KiB (growth {:.2} %)\n",
+                p.pid,
+                p.cpu_mean_percent,
+                p.rss_after_warmup_kib,
+                p.rss_end_kib,
+                p.rss_max_after_warmup_kib,
+                p.rss_growth_percent
             );
         }
         out
