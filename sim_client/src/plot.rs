@@ -59,6 +59,19 @@ fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> SimClientError + '_ {
     }
 }
 
+/// The series labels, in the one style every figure uses.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+}
+
 fn ids(trajectory: &[VehicleState]) -> Vec<u32> {
     let mut ids: Vec<u32> = trajectory.iter().map(|s| s.id).collect();
     ids.sort_unstable();
@@ -162,13 +175,7 @@ pub fn speed_plot(path: &Path, e: &Episode, title: &str, markers: &[usize]) -> R
                 .map(|d| Circle::new((d.time_s, d.ego_speed_mps), 7, SNAPSHOT_MARKER.stroke_width(3))),
         )
         .map_err(&err)?;
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&err)?;
     root.present().map_err(&err)?;
     Ok(())
 }
@@ -218,13 +225,7 @@ fn beta_chart(
             .label(label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&err)?;
     Ok(())
 }
 

@@ -202,3 +202,31 @@ pub fn concurrent_vehicles_each_answered_once<C>(
         .collect();
     assert_eq!(all, expected);
 }
+
+/// Whether `python3` can import `modules` (as written in an `import` statement); the
+/// interpreter's error when it cannot.
+pub fn python_can_import(modules: &str) -> Result<(), String> {
+    let out = std::process::Command::new("python3")
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .map_err(|e| format!("python3 does not run: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(String::from_utf8_lossy(&out.stderr).into_owned())
+    }
+}
+
+/// [`python_can_import`] for the tests a user may skip: a missing module fails the test (a
+/// missing dependency is never a pass) with `hint`, unless HMDP_SKIP_PYTHON=1, which skips it
+/// (false).
+pub fn python_ready(modules: &str, hint: &str) -> bool {
+    let Err(why) = python_can_import(modules) else {
+        return true;
+    };
+    if std::env::var("HMDP_SKIP_PYTHON").as_deref() == Ok("1") {
+        eprintln!("skipped: python3 cannot import {modules} and HMDP_SKIP_PYTHON=1");
+        return false;
+    }
+    panic!("python3 cannot import {modules}: {hint}, or set HMDP_SKIP_PYTHON=1 to skip these tests\n{why}");
+}

@@ -28,26 +28,12 @@ const STEP_S: f64 = 0.4;
 /// Lane change duration of the client's trivial ego model (its `LANE_CHANGE_S`).
 const LANE_CHANGE_S: f64 = 3.0;
 
-/// True when the client can run. Without the zenoh module the test fails, so that a
-/// missing dependency is never mistaken for a pass, unless the user opted out.
+/// True when the client can run (see [`system_tests::python_ready`]).
 fn python_ready() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import zenoh"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if ok {
-        return true;
-    }
-    if std::env::var("HMDP_SKIP_PYTHON").as_deref() == Ok("1") {
-        eprintln!("skipped: python3 cannot import zenoh and HMDP_SKIP_PYTHON=1");
-        return false;
-    }
-    panic!(
-        "python3 cannot import zenoh: run scripts/install-build-deps (it installs the pinned eclipse-zenoh \
-         of clients/python/requirements.txt), or set HMDP_SKIP_PYTHON=1 to skip these tests"
-    );
+    system_tests::python_ready(
+        "zenoh",
+        "run scripts/install-build-deps (it installs the pinned eclipse-zenoh of clients/python/requirements.txt)",
+    )
 }
 
 fn client_script() -> PathBuf {

@@ -8,7 +8,7 @@
 //! unless HMDP_SKIP_PYTHON=1.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Output};
 use std::sync::OnceLock;
 use std::time::Duration;
 
@@ -141,23 +141,9 @@ fn a_truncated_or_foreign_file_is_a_clear_error() {
     }
 }
 
-/// True when python3 has the `mcap` package; without it the test fails (a missing
-/// dependency is never a pass) unless HMDP_SKIP_PYTHON=1.
+/// True when python3 has the `mcap` package (see [`system_tests::python_ready`]).
 fn python_mcap_ready() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import mcap"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if ok {
-        return true;
-    }
-    if std::env::var("HMDP_SKIP_PYTHON").as_deref() == Ok("1") {
-        eprintln!("skipped: python3 cannot import mcap and HMDP_SKIP_PYTHON=1");
-        return false;
-    }
-    panic!("python3 cannot import mcap: run scripts/install-build-deps, or set HMDP_SKIP_PYTHON=1");
+    system_tests::python_ready("mcap", "run scripts/install-build-deps")
 }
 
 /// The reference reader's view of `file` (clients/mcap_check/check_recording.py).

@@ -43,16 +43,12 @@ fn repo() -> PathBuf {
 
 /// Fails (never skips) when SUMO or the Python modules are missing: CI installs them.
 fn require_sumo() {
-    let out = Command::new("python3")
-        .args(["-c", "import sumo, traci, sumolib, zenoh"])
-        .output()
-        .expect("python3 runs");
-    assert!(
-        out.status.success(),
-        "python3 cannot import sumo, traci, sumolib and zenoh: run scripts/install-build-deps (it installs \
-         clients/sumo/requirements.txt)\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    if let Err(why) = system_tests::python_can_import("sumo, traci, sumolib, zenoh") {
+        panic!(
+            "python3 cannot import sumo, traci, sumolib and zenoh: run scripts/install-build-deps (it installs \
+             clients/sumo/requirements.txt)\n{why}"
+        );
+    }
 }
 
 /// Runs `python3 args` in `dir` within BRIDGE_LIMIT; (exit code, stdout, stderr).

@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use decision::corpus::{agree, paper_classes, SituationGenerator, TrafficClass};
-use decision::{Backend, DecisionError, Planner, PlannerConfig};
+use decision::{Backend, Decision, DecisionError, Planner, PlannerConfig, Situation};
 use serde::Serialize;
 use stats::{LayerCounts, Percentiles};
 
@@ -54,14 +54,31 @@ fn rate(agreed: usize, checked: usize) -> f64 {
     }
 }
 
+/// The MILP planner and the exact oracle (enumeration), both on `config`.
+pub(crate) fn both_backends(config: &PlannerConfig) -> Result<(Planner, Planner), DecisionError> {
+    let on = |backend| {
+        let mut c = config.clone();
+        c.solver.backend = backend;
+        Planner::new(c)
+    };
+    Ok((on(Backend::Milp)?, on(Backend::Enumeration)?))
+}
+
+/// One decision, its wall time appended to `times` (µs).
+pub(crate) fn timed_decision(
+    planner: &mut Planner,
+    situation: &Situation,
+    times: &mut Vec<u64>,
+) -> Result<Decision, DecisionError> {
+    let started = Instant::now();
+    let decision = planner.decide(situation);
+    times.push(started.elapsed().as_micros() as u64);
+    decision
+}
+
 /// Run the benchmark.
 pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchReport, DecisionError> {
-    let mut milp_config = config.clone();
-    milp_config.solver.backend = Backend::Milp;
-    let mut oracle_config = config.clone();
-    oracle_config.solver.backend = Backend::Enumeration;
-    let mut milp = Planner::new(milp_config)?;
-    let mut oracle = Planner::new(oracle_config)?;
+    let (mut milp, mut oracle) = both_backends(config)?;
     let (mut all_milp, mut all_oracle) = (Vec::new(), Vec::new());
     let mut agreement = Agreement {
         checked: 0,
@@ -78,18 +95,12 @@ pub fn run(config: &PlannerConfig, per_class: usize, seed: u64) -> Result<BenchR
         for k in 0..per_class {
             let situation = generator.situation(config, &class);
             // Alternate the order so neither backend always runs on a warm cache.
-            let timed = |planner: &mut Planner, times: &mut Vec<u64>| {
-                let started = Instant::now();
-                let decision = planner.decide(&situation);
-                times.push(started.elapsed().as_micros() as u64);
-                decision
-            };
             let (a, b) = if k % 2 == 0 {
-                let a = timed(&mut milp, &mut t_milp)?;
-                (a, timed(&mut oracle, &mut t_oracle)?)
+                let a = timed_decision(&mut milp, &situation, &mut t_milp)?;
+                (a, timed_decision(&mut oracle, &situation, &mut t_oracle)?)
             } else {
-                let b = timed(&mut oracle, &mut t_oracle)?;
-                (timed(&mut milp, &mut t_milp)?, b)
+                let b = timed_decision(&mut oracle, &situation, &mut t_oracle)?;
+                (timed_decision(&mut milp, &situation, &mut t_milp)?, b)
             };
             layers.add(a.layer.into());
             match agree(config, &situation, &a, &b) {

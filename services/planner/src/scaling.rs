@@ -1,13 +1,13 @@
 //! How solve time grows with the horizon, the action set and the SV count: both backends on
 //! the same seeded situations of the 4-lane highway class, with their agreement.
 
-use std::time::Instant;
-
-use decision::corpus::{agree, SituationGenerator, TrafficClass};
+use decision::corpus::{agree, paper_classes, SituationGenerator, TrafficClass};
 use decision::model::admissible_sequences;
-use decision::{Backend, DecisionError, Planner, PlannerConfig};
+use decision::{DecisionError, PlannerConfig};
 use serde::Serialize;
 use stats::Percentiles;
+
+use crate::bench::{both_backends, timed_decision};
 
 /// What to sweep.
 #[derive(Debug, Clone, Serialize)]
@@ -57,25 +57,13 @@ pub struct ScalingReport {
     pub cells: Vec<ScalingCell>,
 }
 
+/// Table I row 18 (4 lanes, highway speeds) with `svs` SVs.
 fn highway_class(svs: usize) -> TrafficClass {
-    TrafficClass {
-        id: 18,
-        lanes: 4,
-        svs,
-        speed_min_mps: 25.0,
-        speed_max_mps: 40.0,
-    }
-}
-
-fn timed(
-    planner: &mut Planner,
-    s: &decision::Situation,
-    times: &mut Vec<u64>,
-) -> Result<decision::Decision, DecisionError> {
-    let started = Instant::now();
-    let d = planner.decide(s);
-    times.push(started.elapsed().as_micros() as u64);
-    d
+    let row18 = paper_classes()
+        .into_iter()
+        .find(|c| c.id == 18)
+        .expect("Table I has row 18");
+    TrafficClass { svs, ..row18 }
 }
 
 /// Run the sweep with `base` for everything but the horizon and the action set.
@@ -88,12 +76,7 @@ pub fn run(base: &PlannerConfig, spec: &ScalingSpec) -> Result<ScalingReport, De
             config.ego.combined_actions = combined;
             let sequences = admissible_sequences(decision::Maneuver { lane: 2, beta: 0 }, 4, horizon, combined).len();
             let with_oracle = sequences <= spec.max_sequences;
-            let mut milp_config = config.clone();
-            milp_config.solver.backend = Backend::Milp;
-            let mut oracle_config = config.clone();
-            oracle_config.solver.backend = Backend::Enumeration;
-            let mut milp = Planner::new(milp_config)?;
-            let mut oracle = Planner::new(oracle_config)?;
+            let (mut milp, mut oracle) = both_backends(&config)?;
             for &svs in &spec.svs {
                 let class = highway_class(svs);
                 let mut generator =
@@ -112,9 +95,9 @@ pub fn run(base: &PlannerConfig, spec: &ScalingSpec) -> Result<ScalingReport, De
                 };
                 for k in 0..spec.per_cell {
                     let s = generator.situation(&config, &class);
-                    let a = timed(&mut milp, &s, &mut t_milp)?;
+                    let a = timed_decision(&mut milp, &s, &mut t_milp)?;
                     if with_oracle {
-                        let b = timed(&mut oracle, &s, &mut t_oracle)?;
+                        let b = timed_decision(&mut oracle, &s, &mut t_oracle)?;
                         cell.compared += 1;
                         match agree(&config, &s, &a, &b) {
                             Ok(()) => cell.agreed += 1,

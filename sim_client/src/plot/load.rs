@@ -4,7 +4,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::{err, BETA_DECEL, EGO, SV_COLOURS};
+use super::{draw_legend, err, BETA_DECEL, EGO, SV_COLOURS};
 use crate::error::Result;
 
 /// The round-trip distribution of a load run: latency against the percentile, on "nines"
@@ -58,13 +58,7 @@ pub fn latency_plot(path: &Path, report: &crate::load::LoadReport) -> Result<()>
         .map_err(&err)?
         .label("deadline")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft).map_err(&err)?;
     root.present().map_err(&err)?;
     Ok(())
 }
@@ -117,13 +111,7 @@ pub fn load_timeline_plot(path: &Path, report: &crate::load::LoadReport) -> Resu
             .label(name)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(&err)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&err)?;
     if let Some(planner) = &report.planner {
         let rss_max = planner
             .samples
@@ -158,13 +146,7 @@ pub fn load_timeline_plot(path: &Path, report: &crate::load::LoadReport) -> Resu
             .map_err(&err)?
             .label("CPU (% / 10)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], SV_COLOURS[2].stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(&err)?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&err)?;
     }
     root.present().map_err(&err)?;
     Ok(())
