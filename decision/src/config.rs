@@ -132,6 +132,12 @@ pub struct IdmParams {
     /// cut in that close) may stay inside by this share of the violation, decaying by this
     /// factor per step (a discrete control-barrier condition); 0: the margin holds at once.
     pub violation_decay: f64,
+    /// For an SV ahead, the violation may also stay as large as it would be if the ego braked
+    /// at this deceleration (m/s^2, a magnitude) as soon as its maneuver state allows,
+    /// whichever allows more: a deep violation (a cut-in close ahead) is then recovered by
+    /// comfortable braking, not the strongest. The floor rows keep the decay alone. 0: the
+    /// decay alone.
+    pub violation_recovery_mps2: f64,
 }
 
 impl Default for IdmParams {
@@ -143,6 +149,7 @@ impl Default for IdmParams {
             comfort_decel_mps2: 2.0,
             speed_dependent: true,
             violation_decay: 0.8,
+            violation_recovery_mps2: 1.5,
         }
     }
 }
@@ -387,6 +394,33 @@ pub struct SolverSettings {
     pub warm_start: bool,
     /// Tolerance when checking a plan against the exact constraints, m.
     pub feasibility_tolerance: f64,
+    /// Further HiGHS options by name (`[solver.highs_options]`, e.g. `mip_detect_symmetry =
+    /// false`), set after the planner's own; an unknown name or a value of the wrong type
+    /// fails `Planner::new`. The planner's settings (quiet, one thread, presolve off, time
+    /// limit) can be overridden here too, at the user's risk.
+    pub highs_options: std::collections::BTreeMap<String, HighsOptionValue>,
+}
+
+/// The value of one HiGHS option, as TOML writes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum HighsOptionValue {
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    Text(String),
+}
+
+impl std::fmt::Display for HighsOptionValue {
+    /// The form `Highs_setOptionValue` parses.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HighsOptionValue::Bool(b) => write!(f, "{b}"),
+            HighsOptionValue::Int(i) => write!(f, "{i}"),
+            HighsOptionValue::Float(x) => write!(f, "{x:?}"),
+            HighsOptionValue::Text(t) => f.write_str(t),
+        }
+    }
 }
 
 impl Default for SolverSettings {
@@ -396,6 +430,7 @@ impl Default for SolverSettings {
             time_limit_s: 0.3,
             warm_start: true,
             feasibility_tolerance: 1e-6,
+            highs_options: std::collections::BTreeMap::new(),
         }
     }
 }
@@ -503,6 +538,9 @@ impl PlannerConfig {
         }
         if !(0.0..1.0).contains(&self.idm.violation_decay) {
             return bad("idm.violation_decay", "must be in [0, 1)");
+        }
+        if !(self.idm.violation_recovery_mps2.is_finite() && self.idm.violation_recovery_mps2 >= 0.0) {
+            return bad("idm.violation_recovery_mps2", "must be finite and non-negative");
         }
         if !(e.lane_change_s.is_finite() && e.lane_change_s > 0.0) {
             return bad("ego.lane_change_s", "must be positive");

@@ -47,6 +47,8 @@ pub enum ConfigError {
 pub enum SolverError {
     #[error("HiGHS call `{call}` failed with status {status}")]
     Highs { call: &'static str, status: i32 },
+    #[error("HiGHS rejected option `{name}` = `{value}` (unknown name or wrong type)")]
+    Option { name: String, value: String },
 }
 
 /// Anything `Planner::decide` can return instead of a decision.

@@ -71,12 +71,12 @@ pub fn requirements(problem: &Problem, r: &Rollout) -> Vec<Requirement> {
                 if !branch.occupancy[h].intersects(binding) {
                     continue;
                 }
-                let base = l - c.allowance[h] - sign * (branch.x[h] - coast);
+                let base = l - sign * (branch.x[h] - coast);
                 out.push(Requirement {
                     sv: i,
                     step: h,
                     band: false,
-                    rhs: c.margin[b][h] + base,
+                    rhs: c.margin[b][h] - c.allowance[h] + base,
                     coef: position.iter().map(|p| p - c.slope * kin.dt).collect(),
                 });
                 if floor_matters {
@@ -84,7 +84,7 @@ pub fn requirements(problem: &Problem, r: &Rollout) -> Vec<Requirement> {
                         sv: i,
                         step: h,
                         band: false,
-                        rhs: c.floor[h] + base,
+                        rhs: c.floor[h] - c.floor_allowance[h] + base,
                         coef: position.clone(),
                     });
                 }

@@ -251,6 +251,23 @@ impl HighsSolver {
         })
     }
 
+    /// Set any option by name from its text form (HiGHS parses it by the option's type).
+    pub fn set_option(&mut self, name: &str, value: &str) -> Result<(), SolverError> {
+        let rejected = || SolverError::Option {
+            name: name.to_owned(),
+            value: value.to_owned(),
+        };
+        let key = CString::new(name).map_err(|_| rejected())?;
+        let text = CString::new(value).map_err(|_| rejected())?;
+        // SAFETY: live instance, NUL-terminated strings.
+        let status = unsafe { ffi::Highs_setOptionValue(self.ptr, key.as_ptr(), text.as_ptr()) };
+        if status == ffi::kHighsStatusOk {
+            Ok(())
+        } else {
+            Err(rejected())
+        }
+    }
+
     /// Change the per-solve time limit.
     pub fn set_time_limit(&mut self, seconds: f64) -> Result<(), SolverError> {
         self.set_double("time_limit", seconds)

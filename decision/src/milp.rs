@@ -18,6 +18,7 @@
 //! - [`Builder::occupancy_rows`]: `o[s][l] >= z[j][l]` for `j <= s`: a lane stays occupied
 //!   once targeted because a lane change outlasts the horizon.
 
+use crate::config::SolverSettings;
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
 use crate::highs_solver::{HighsSolver, InterruptHandle, MipModel, MipStatus};
@@ -314,7 +315,7 @@ impl<'p> Builder<'p> {
             }
             if c.floor_matters() {
                 if let Some(d) = tightest(&|_| c.floor[s]) {
-                    rows.push((ego_gap.clone(), d - c.allowance[s] + p.length, false));
+                    rows.push((ego_gap.clone(), d - c.floor_allowance[s] + p.length, false));
                 }
             }
         }
@@ -495,10 +496,13 @@ pub struct MilpBackend {
 }
 
 impl MilpBackend {
-    pub fn new(time_limit_s: f64) -> Result<Self, SolverError> {
-        Ok(Self {
-            solver: HighsSolver::new(time_limit_s)?,
-        })
+    /// A backend with the settings' time limit and extra HiGHS options.
+    pub fn new(settings: &SolverSettings) -> Result<Self, SolverError> {
+        let mut solver = HighsSolver::new(settings.time_limit_s)?;
+        for (name, value) in &settings.highs_options {
+            solver.set_option(name, &value.to_string())?;
+        }
+        Ok(Self { solver })
     }
 
     pub fn interrupt_handle(&self) -> InterruptHandle {
@@ -530,17 +534,19 @@ impl MilpBackend {
         };
         // The best warm candidate bounds the search; if nothing beats it, it is the answer.
         let incumbent_offered = !warm.is_empty();
-        let incumbent = warm
-            .iter()
-            .filter_map(|actions| evaluate(problem, actions, mode))
-            .min_by(|a, b| a.cost.total_cmp(&b.cost));
+        let best_warm = || {
+            warm.iter()
+                .filter_map(|actions| evaluate(problem, actions, mode))
+                .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        };
         // HiGHS prunes with the cutoff (`objective_bound`). With the continuous input it was
         // seen to declare "nothing below the cutoff" on a model whose optimum lies well below
-        // it (4.88 under a cutoff of 14.10), so there the incumbent only competes afterwards.
-        let cutoff = incumbent
-            .as_ref()
-            .filter(|_| !problem.kin.is_continuous())
-            .map(|e| e.cost + 1e-6 + 1e-9 * e.cost.abs());
+        // it (4.88 under a cutoff of 14.10), so there the incumbent only competes afterwards,
+        // and only when the solve did not prove optimality: scoring it is an LP per candidate,
+        // which an optimal solve cannot lose to.
+        let continuous = problem.kin.is_continuous();
+        let early = if continuous { None } else { best_warm() };
+        let cutoff = early.as_ref().map(|e| e.cost + 1e-6 + 1e-9 * e.cost.abs());
         let result = self.solver.solve(&model, cutoff)?;
         let stopped = result.status == MipStatus::Stopped;
         let usable = matches!(result.status, MipStatus::Optimal | MipStatus::Stopped);
@@ -550,6 +556,12 @@ impl MilpBackend {
                 evaluate_at(problem, &actions, &accel, mode)
             }
             _ => None,
+        };
+        let proven = result.status == MipStatus::Optimal && found.is_some();
+        let incumbent = match (continuous, proven) {
+            (true, true) => None,
+            (true, false) => best_warm(),
+            (false, _) => early,
         };
         let solver_objective = found.as_ref().map(|_| result.objective);
         let evaluation = match (found, incumbent) {

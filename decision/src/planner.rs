@@ -31,7 +31,7 @@ impl Planner {
     pub fn new(config: PlannerConfig) -> Result<Self, DecisionError> {
         config.validate()?;
         let milp = match config.solver.backend {
-            Backend::Milp => Some(MilpBackend::new(config.solver.time_limit_s)?),
+            Backend::Milp => Some(MilpBackend::new(&config.solver)?),
             Backend::Enumeration => None,
         };
         Ok(Self { config, milp })

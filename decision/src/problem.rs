@@ -14,7 +14,7 @@ use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situa
 ///
 /// The hard row of branch `b` at step `h` (0-based) reads
 /// `gap_b(h) >= margin[b][h] + slope * (v_h - v_0) - allowance[h]`, together with the floor
-/// `gap_b(h) >= floor[h] - allowance[h]`; `gap` is the signed bumper-to-bumper distance and
+/// `gap_b(h) >= floor[h] - floor_allowance[h]`; `gap` is the signed bumper-to-bumper distance and
 /// `v_h` the ego's speed after step `h`.
 #[derive(Debug, Clone)]
 pub struct SvConstraint {
@@ -31,8 +31,12 @@ pub struct SvConstraint {
     pub floor: Vec<f64>,
     /// Sensitivity of the margin to the ego's speed (0 without `idm.speed_dependent`).
     pub slope: f64,
-    /// How far the rows may still be violated per step when the SV is inside its margin now.
+    /// How far the margin rows may still be violated per step when the SV is inside its
+    /// margin now.
     pub allowance: Vec<f64>,
+    /// The same for the floor rows (only when the SV is inside the floor now): the floor
+    /// keeps the fast decay, whatever the margin's allowance.
+    pub floor_allowance: Vec<f64>,
     /// No rows in the lanes the ego occupies now (a follower there keeps its own gap).
     pub exempt_in_own_lanes: bool,
     /// Thresholds in force while in corrective mode (only for SVs ahead).
@@ -240,6 +244,54 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
     }
 }
 
+/// How far the margin rows of an SV already inside its margin by `violation` may still be
+/// violated after each step: the larger of the geometric decay (`idm.violation_decay` per
+/// step) and, for an SV ahead, the violation that remains on a reference rollout where the
+/// ego brakes at `idm.violation_recovery_mps2` as soon as its maneuver state allows (one
+/// state change per step: from `+1` it first cruises), against each predicted branch.
+///
+/// The decay alone asks a deep violation (a cut-in 20 m ahead inside a 120 m margin) to
+/// shrink by a fifth of it per step, which only the strongest braking achieves, and none at
+/// all from an accelerating state: the problem is infeasible and the fallback answers.
+/// Recovering at a comfortable deceleration is what a driver does; the reference rollout is
+/// feasible for these rows by construction, and the floor rows keep the decay alone.
+fn violation_allowance(
+    ctx: &Context,
+    ahead: bool,
+    margin: &[Vec<f64>],
+    slope: f64,
+    branches: &[Branch],
+    violation: f64,
+) -> Vec<f64> {
+    let config = ctx.config;
+    let horizon = config.timing.horizon;
+    let decay = config.idm.violation_decay;
+    let by_decay = (1..=horizon as i32).map(|h| violation * decay.powi(h));
+    let recovery = config.idm.violation_recovery_mps2;
+    if !(ahead && decay > 0.0 && recovery > 0.0 && violation > 0.0) {
+        return by_decay.collect();
+    }
+    let kin = &ctx.kin;
+    let start = &ctx.start;
+    let length = config.vehicle.length_m;
+    let (mut x, mut v) = (start.x, start.v);
+    let mut beta = start.maneuver.beta;
+    let mut reference = Vec::with_capacity(horizon);
+    for h in 0..horizon {
+        beta = (beta - 1).max(-1);
+        let lowest = kin.bounds[(beta + 1) as usize].0;
+        let u = (-recovery).max(lowest).max(-v / kin.dt);
+        (x, v) = kin.step_with(x, v, u);
+        let worst = branches
+            .iter()
+            .zip(margin)
+            .map(|(b, m)| m[h] + slope * (v - start.v) - (b.x[h] - x - length))
+            .fold(0.0, f64::max);
+        reference.push(worst);
+    }
+    by_decay.zip(reference).map(|(d, r)| d.max(r)).collect()
+}
+
 /// SVs inside the perception window, the nearest `max_svs` of them (ties by id, so the
 /// choice is deterministic), in id order.
 fn relevant_svs<'a>(config: &PlannerConfig, s: &'a Situation) -> Vec<&'a SvObservation> {
@@ -310,17 +362,28 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     let floor: Vec<f64> = ctx.sigmas.iter().map(|&s| config.idm.jam_distance_m + s).collect();
     let exempt_in_own_lanes = !ahead && config.perception.rear_responsibility;
     let sign = if ahead { 1.0 } else { -1.0 };
-    // Already inside the margin now, in a lane the ego occupies (or moving into one within the
-    // first step, as the lateral prediction sees a cut-in): the rows may stay violated by a
-    // decaying share of today's violation.
-    let shares_lane = sv_occ.intersects(occupancy0) || branches.iter().any(|b| b.occupancy[0].intersects(occupancy0));
-    let violation_now = if shares_lane && !exempt_in_own_lanes {
-        (hard[0].max(floor[0]) - (sign * (sv.x_m - x0) - length)).max(0.0)
+    // Already inside the margin now, in a lane the ego occupies or predicted into one within
+    // the horizon (a cut-in the lateral prediction sees): the rows may stay violated by a
+    // shrinking share of today's violation. A cut-in two steps away is no more the ego's
+    // doing than one a step away, and with no allowance its margin is infeasible at once.
+    let shares_lane = sv_occ.intersects(occupancy0)
+        || branches
+            .iter()
+            .any(|b| b.occupancy.iter().any(|o| o.intersects(occupancy0)));
+    let gap_now = sign * (sv.x_m - x0) - length;
+    let (violation_now, floor_violation_now) = if shares_lane && !exempt_in_own_lanes {
+        (
+            (hard[0].max(floor[0]) - gap_now).max(0.0),
+            (floor[0] - gap_now).max(0.0),
+        )
     } else {
-        0.0
+        (0.0, 0.0)
     };
+    let allowance = violation_allowance(ctx, ahead, &margin, slope, &branches, violation_now);
     let decay = config.idm.violation_decay;
-    let allowance: Vec<f64> = (1..=horizon as i32).map(|h| violation_now * decay.powi(h)).collect();
+    let floor_allowance: Vec<f64> = (1..=horizon as i32)
+        .map(|h| floor_violation_now * decay.powi(h))
+        .collect();
     let mut c = SvConstraint {
         id: sv.id,
         ahead,
@@ -330,6 +393,7 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         floor,
         slope,
         allowance,
+        floor_allowance,
         exempt_in_own_lanes,
         corrective: None,
         relax_bound: config.recovery.gamma * d_idm,
@@ -376,7 +440,7 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         c.anticipation_s = config.hysteresis.anticipation_s;
         let band = entry.release_m - entry.trigger_m;
         let weakest = (0..horizon)
-            .map(|h| c.floor[h].min(c.hard[h]) - c.allowance[h])
+            .map(|h| (c.floor[h] - c.floor_allowance[h]).min(c.hard[h] - c.allowance[h]))
             .fold(f64::INFINITY, f64::min);
         // The anticipated closing is priced, never forced: the bound covers it.
         let closing = (0..horizon).map(|h| c.band_anticipation(h, v0)).fold(0.0, f64::max);

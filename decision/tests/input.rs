@@ -56,7 +56,7 @@ proptest! {
     }
 
     #[test]
-    fn lanes_off_the_road_are_rejected(seed in 0u64..1000, class in 0usize..18, lane in prop_oneof![Just(0u8), 5u8..=255], y_off in 2.01f64..1e5) {
+    fn lanes_off_the_road_are_rejected(seed in 0u64..1000, class in 0usize..18, lane in prop_oneof![Just(0u8), 5u8..=255], y_beyond_edge in 0.01f64..1e5) {
         let mut s = base(seed, class);
         let lanes = s.road.lanes;
         let mut p = Planner::new(PlannerConfig::default()).unwrap();
@@ -64,8 +64,10 @@ proptest! {
         ego_lane.ego.maneuver.lane = if lane == 0 { 0 } else { lanes + lane % (255 - lanes) + 1 };
         let e = input_error(&mut p, &ego_lane);
         prop_assert!(matches!(e, InputError::LaneOutOfRange { .. }), "{:?}", e);
-        // An SV more than half a lane beyond the outermost lane centre.
-        s.svs[0].y_m = if seed % 2 == 0 { -y_off } else { f64::from(lanes - 1) * 4.0 + y_off };
+        // An SV beyond the road edge (half a lane beyond the outermost lane centre) by more
+        // than the tolerance of a measurement.
+        let y_off = s.road.lane_width_m / 2.0 + decision::lanes::ROAD_EDGE_TOLERANCE_M + y_beyond_edge;
+        s.svs[0].y_m = if seed % 2 == 0 { -y_off } else { f64::from(lanes - 1) * s.road.lane_width_m + y_off };
         let e = input_error(&mut p, &s);
         prop_assert!(matches!(e, InputError::LaneOutOfRange { .. }), "{:?}", e);
     }

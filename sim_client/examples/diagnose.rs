@@ -6,7 +6,9 @@
 //!
 //! Environment: `ONLY_CFG=N` runs one configuration; `SHOW=1` lists every hard-braking onset;
 //! `SHOW_FALLBACK=1` every fallback with the SVs near the ego; `SHOW_TRACE=CFG:TRIAL` one
-//! trial decision by decision (speed, state, plan, the leader); `SHOW_COUNTS=1` the beta
+//! trial decision by decision (speed, state, plan, the leader); `NEAR_M` how far along the road
+//! `SHOW_FALLBACK` lists SVs (80 m), `DUMP_FALLBACK=DIR` writes their situations as JSON for
+//! `cargo run -p decision --example explain_fallback`; `SHOW_COUNTS=1` the beta
 //! switches per trial.
 use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::episode::{run_episode, Driver};
@@ -24,6 +26,8 @@ fn main() -> anyhow::Result<()> {
     let mut switches: BTreeMap<String, u64> = BTreeMap::new();
     let mut brakes: BTreeMap<String, u64> = BTreeMap::new();
     let mut minutes = 0.0;
+    // How far along the road `SHOW_FALLBACK` lists SVs (`NEAR_M`, default 80 m).
+    let near_m: f64 = std::env::var("NEAR_M").map_or(Ok(80.0), |v| v.parse())?;
     for e in &settings.entries {
         if std::env::var("ONLY_CFG").is_ok_and(|c| c != e.id.to_string()) {
             continue;
@@ -56,11 +60,15 @@ fn main() -> anyhow::Result<()> {
             if std::env::var("SHOW_FALLBACK").is_ok() {
                 for r in d.iter().filter(|r| r.layer == Some(protocol::Layer::Fallback)) {
                     let Some(s) = &r.situation else { continue };
+                    if let Ok(dir) = std::env::var("DUMP_FALLBACK") {
+                        let path = format!("{dir}/cfg{}-trial{}-t{:.1}.json", e.id, trial, r.time_s);
+                        std::fs::write(path, serde_json::to_string(s)?)?;
+                    }
                     let ego = &s.ego;
                     let mut near: Vec<_> = s
                         .svs
                         .iter()
-                        .filter(|sv| (sv.y_m - ego.y_m).abs() < 5.0 && (sv.x_m - ego.x_m).abs() < 80.0)
+                        .filter(|sv| (sv.y_m - ego.y_m).abs() < 5.0 && (sv.x_m - ego.x_m).abs() < near_m)
                         .map(|sv| {
                             format!(
                                 "[dx {:.1} dy {:.1} v {:.1} a {:.1} vy {:.2}]",

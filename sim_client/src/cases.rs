@@ -158,12 +158,18 @@ impl Case2 {
     }
 }
 
-/// The Case 1 scene, same seed, with hysteresis forced on and then off.
-pub fn run_ablation(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<Ablation> {
+/// `config` with hysteresis forced on, and forced off: the two runs of an ablation.
+pub fn ablation_configs(config: &PlannerConfig) -> (PlannerConfig, PlannerConfig) {
     let mut on = config.clone();
     on.hysteresis.enabled = true;
     let mut off = config.clone();
     off.hysteresis.enabled = false;
+    (on, off)
+}
+
+/// The Case 1 scene, same seed, with hysteresis forced on and then off.
+pub fn run_ablation(config: &PlannerConfig, transport: &Transport, seed: u64) -> Result<Ablation> {
+    let (on, off) = ablation_configs(config);
     Ok(Ablation {
         with: run_case(&on, transport, seed)?,
         without: run_case(&off, transport, seed)?,

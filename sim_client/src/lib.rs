@@ -7,7 +7,8 @@
 //! ([`episode`]), the metrics ([`metrics`]) and the experiment runners ([`cases`],
 //! [`campaign`]) are pure; files are written by [`report`] and [`plot`]. [`load`] measures a
 //! planner process under load (`sim_client load` / `soak`). [`record`] writes a trial to MCAP (with a Foxglove scene from
-//! [`scene`]); [`log_replay`] replays a recorded traffic log against the planner.
+//! [`scene`]), [`recorded`] runs the cases and campaign trials with it; [`log_replay`] replays
+//! a recorded traffic log against the planner.
 
 pub mod campaign;
 pub mod campaign_report;
@@ -25,6 +26,7 @@ pub mod plot;
 pub mod prediction;
 pub mod presets;
 pub mod record;
+pub mod recorded;
 pub mod report;
 pub mod safety;
 pub mod scene;

@@ -1,20 +1,21 @@
 //! `sim_client`: runs the paper's experiments against the planner.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
-use sim_client::campaign::{self, CampaignSettings};
 use sim_client::connect::BUSY_POLL_WINDOW;
-use sim_client::load::{self, parse_run_length, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines};
 use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPlanner};
-use sim_client::{cases, report, Transport, ZenohTarget};
+use sim_client::{Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
 
+use load_command::{LoadArgs, LoadWorkerArgs};
+use study_commands::{CampaignArgs, PaperArgs};
+
+mod load_command;
 mod replay_command;
+mod study_commands;
 
 #[derive(Parser)]
 #[command(
@@ -72,6 +73,10 @@ struct Common {
     /// Where a planner started with `--spawn-planner` writes its log (default: this stderr).
     #[arg(long, value_name = "FILE", requires = "spawn_planner")]
     planner_log: Option<PathBuf>,
+    /// A planner started with `--spawn-planner` records every request and answer to this
+    /// MCAP file (`planner serve --record`; complete when the run ends and the planner stops).
+    #[arg(long, value_name = "FILE.mcap", requires = "spawn_planner")]
+    planner_record: Option<PathBuf>,
 }
 
 impl Common {
@@ -88,6 +93,7 @@ impl Common {
                 workers,
                 config: self.planner_config.clone(),
                 log: self.planner_log.clone(),
+                record: self.planner_record.clone(),
             };
             spawn_planner(&serve, &options)
         };
@@ -150,51 +156,6 @@ impl Common {
     }
 }
 
-/// Settings shared by `load` and `soak`.
-#[derive(Args)]
-struct LoadArgs {
-    #[command(flatten)]
-    common: Common,
-    /// Vehicle clients.
-    #[arg(long, default_value_t = 8)]
-    clients: usize,
-    /// Requests per second per vehicle.
-    #[arg(long, default_value_t = 2.5)]
-    rate: f64,
-    /// Run length, e.g. `60s`, `10m`, `1h`; a plain number is seconds.
-    #[arg(long, value_parser = parse_run_length)]
-    duration: Option<Duration>,
-    /// RSS growth is measured against the first sample after this (default: a quarter of the
-    /// run, at most 10 s for `load`, 60 s for `soak`).
-    #[arg(long, value_parser = parse_run_length)]
-    warmup: Option<Duration>,
-    /// The vehicles' deadline, ms.
-    #[arg(long, default_value_t = 400)]
-    deadline_ms: u64,
-    /// Run the vehicles in this many processes (each gets its share of `--clients`) instead
-    /// of threads of this process.
-    #[arg(long, default_value_t = 0)]
-    processes: usize,
-    /// The planner's pid, to sample its CPU and RSS (known by itself with `--spawn-planner`).
-    #[arg(long)]
-    planner_pid: Option<u32>,
-    /// Worker threads of a planner started with `--spawn-planner`.
-    #[arg(long)]
-    planner_workers: Option<usize>,
-    /// Seed of the scenarios.
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
-    /// Also write the report as JSON to this file.
-    #[arg(long, value_name = "FILE")]
-    json: Option<PathBuf>,
-    /// Draw the latency distribution and the time series into `--out`.
-    #[arg(long)]
-    plot: bool,
-    /// Print a progress line this often.
-    #[arg(long, value_parser = parse_run_length, default_value = "10s")]
-    report_every: Duration,
-}
-
 #[derive(Subcommand)]
 enum Command {
     /// Latency under load: vehicle clients at a fixed rate against a planner process, each
@@ -212,24 +173,7 @@ enum Command {
     },
     /// One process's share of `load --processes` (writes its measurements as JSON).
     #[command(hide = true)]
-    LoadWorker {
-        #[command(flatten)]
-        common: Common,
-        #[arg(long)]
-        clients: usize,
-        #[arg(long)]
-        rate: f64,
-        #[arg(long, value_parser = parse_run_length)]
-        duration: Duration,
-        #[arg(long)]
-        deadline_ms: u64,
-        #[arg(long)]
-        seed: u64,
-        #[arg(long)]
-        vehicle_id_base: u64,
-        #[arg(long)]
-        part_out: PathBuf,
-    },
+    LoadWorker(LoadWorkerArgs),
     /// Case 1: the Table II scene for 40 s with the planner, and with the paper-literal
     /// preset (in process) beside it.
     Case1 {
@@ -262,217 +206,19 @@ enum Command {
         seed: u64,
         #[command(flatten)]
         paper: PaperArgs,
+        /// Record each run (ground truth, decisions, a Foxglove scene) next to this file:
+        /// `FILE.with_hysteresis.mcap`, `FILE.without_hysteresis.mcap` and the same with
+        /// `paper_literal.` for the preset (docs/recording.md).
+        #[arg(long, value_name = "FILE.mcap")]
+        record: Option<PathBuf>,
     },
     /// Case 3: the randomized campaign of Table I.
     Campaign {
         #[command(flatten)]
         common: Common,
-        /// Multiply every trial count by this (at least 1 trial per configuration).
-        #[arg(long, default_value_t = 1.0)]
-        trials_scale: f64,
-        /// Custom configurations (TOML `[[config]]` tables or a JSON list) instead of Table I.
-        #[arg(long, value_name = "FILE")]
-        config: Option<PathBuf>,
-        /// Base seed.
-        #[arg(long, default_value_t = 2026)]
-        seed: u64,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Also run the paper-literal preset, the planner without hysteresis and the IDM +
-        /// MOBIL ego.
-        #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-        baselines: bool,
         #[command(flatten)]
-        paper: PaperArgs,
+        campaign: CampaignArgs,
     },
-}
-
-/// The paper-literal preset of the case and campaign commands.
-#[derive(Args)]
-struct PaperArgs {
-    /// Planner TOML of the paper-literal preset (default: the embedded deploy/paper.toml).
-    #[arg(long, value_name = "FILE")]
-    paper_config: Option<PathBuf>,
-}
-
-impl PaperArgs {
-    fn config(&self) -> Result<decision::PlannerConfig> {
-        Ok(sim_client::presets::paper_literal(self.paper_config.as_deref())?)
-    }
-}
-
-/// Runs `load` / `soak`: the report, printed and written.
-fn run_load_command(args: LoadArgs, default_duration: Duration, soak: bool) -> Result<LoadReport> {
-    let (transport, planner) = args.common.open(args.planner_workers)?;
-    let duration = args.duration.unwrap_or(default_duration);
-    let warmup_cap = Duration::from_secs(if soak { 60 } else { 10 });
-    let mut settings = LoadSettings::new(transport, args.clients, args.rate, duration);
-    settings.warmup = args.warmup.unwrap_or((duration / 4).min(warmup_cap));
-    settings.deadline = Duration::from_millis(args.deadline_ms);
-    settings.seed = args.seed;
-    settings.planner = args.common.planner_config()?;
-    settings.planner_pid = args.planner_pid.or(planner.as_ref().map(|p| p.process.id()));
-    let live = std::sync::Arc::new(LiveCounters::default());
-    settings.live = Some(std::sync::Arc::clone(&live));
-    let monitor = settings
-        .planner_pid
-        .map(|pid| ProcessMonitor::start(pid, settings.sample_period));
-    let progress = ProgressLines::start(live, args.report_every);
-    let parts = if args.processes == 0 {
-        vec![load::run_part(&settings, Instant::now())?]
-    } else {
-        load::run_worker_processes(&settings, args.processes, args.common.planner_config.as_deref())?
-    };
-    drop(progress);
-    let report = LoadReport::merge(&settings, &parts, monitor.map(|m| m.finish(settings.warmup)));
-    drop(planner);
-    print!("{}", report.summary());
-    if let Some(path) = &args.json {
-        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
-        }
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
-            .with_context(|| format!("writing {}", path.display()))?;
-        println!("  wrote {}", path.display());
-    }
-    if args.plot {
-        let dir = args.common.out.join(if soak { "soak" } else { "load" });
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let files = [dir.join("latency.svg"), dir.join("timeline.svg")];
-        sim_client::plot::latency_plot(&files[0], &report)?;
-        sim_client::plot::load_timeline_plot(&files[1], &report)?;
-        print_files(&files);
-    }
-    Ok(report)
-}
-
-fn run_campaign(
-    common: &Common,
-    scale: f64,
-    config: Option<PathBuf>,
-    seed: u64,
-    threads: Option<usize>,
-    baselines: bool,
-    paper: &PaperArgs,
-) -> Result<()> {
-    if common.transport != TransportKind::Inproc && baselines {
-        // A planner process has one configuration; the no-hysteresis baseline needs another.
-        anyhow::bail!("with a remote transport, run the campaign with --baselines false");
-    }
-    let (transport, _planner) = common.open(None)?;
-    let entries = match &config {
-        Some(p) => campaign::load_entries(p)?,
-        None => campaign::paper_entries(),
-    };
-    let entries = campaign::scale_trials(&entries, scale)?;
-    let threads = threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
-    let mut settings = CampaignSettings::new(entries, seed, threads);
-    settings.baselines = baselines;
-    settings.planner = common.planner_config()?;
-    settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
-    settings.transport = transport;
-    let bar = if std::io::stderr().is_terminal() {
-        ProgressBar::new(settings.episode_count() as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} episodes, eta {eta}")
-            .expect("valid template"),
-    );
-    let results = campaign::run_campaign(&settings, &|| bar.inc(1))?;
-    bar.finish_and_clear();
-    let files = report::write_campaign(&common.out, &results)?;
-    for g in &results.overall {
-        let share = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v));
-        println!(
-            "{:<22} trials {:>5}  decisions {:>7}  collision rate {:.2}%  NOR {}  GSRR {}  FBR {}  solve mean {:.3} ms p99 {:.3} ms max {:.3} ms",
-            g.driver.name(),
-            g.trials,
-            g.decisions,
-            100.0 * g.collision_rate,
-            share(g.nor),
-            share(g.gsrr),
-            share(g.fbr),
-            g.solve_time.mean_ms,
-            g.solve_time.p99_ms,
-            g.solve_time.max_ms,
-        );
-        let s = &g.safety;
-        println!(
-            "{:<22} collisions at fault {} / hit in lane {} / SV-SV {}  hard brakes {:.1}/h  min TTC p5 {} p50 {} s  TTC<3s {:.2}%  headway<1s {:.2}%  max DRAC {:.2} m/s^2",
-            "",
-            g.collision_split.ego_at_fault,
-            g.collision_split.ego_hit_in_lane,
-            g.collision_split.sv_sv,
-            s.hard_braking_per_hour,
-            s.min_ttc_p5_s.map_or("inf".into(), |v| format!("{v:.2}")),
-            s.min_ttc_p50_s.map_or("inf".into(), |v| format!("{v:.2}")),
-            100.0 * s.ttc_below_3s_share,
-            100.0 * s.headway_below_1s_share,
-            s.max_drac_mps2,
-        );
-    }
-    println!(
-        "campaign wall time {:.1} s on {} thread(s)",
-        results.wall_time_s, results.threads
-    );
-    print_files(&files);
-    Ok(())
-}
-
-fn run_case1(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&std::path::Path>) -> Result<()> {
-    let (transport, _planner) = common.open(None)?;
-    let config = common.planner_config()?;
-    let case = match record {
-        Some(path) => cases::Case1 {
-            planner: replay_command::record_case1(&config, &transport, seed, path)?,
-            paper_literal: Some(cases::run_case(&paper.config()?, &Transport::InProcess, seed)?),
-        },
-        None => cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?,
-    };
-    let files = report::write_case1(&common.out, &case)?;
-    println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
-    if let Some(p) = &case.paper_literal {
-        println!("case1 paper_literal: {}", report::episode_summary_line(&p.metrics));
-    }
-    print_files(&files);
-    Ok(())
-}
-
-fn run_case2(common: &Common, seed: u64, paper: &PaperArgs) -> Result<()> {
-    if common.transport != TransportKind::Inproc {
-        // A planner process has one configuration; the ablation needs two.
-        anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
-    }
-    // Refuses the remote-transport flags, which mean nothing in process.
-    let (transport, _none) = common.open(None)?;
-    let case = cases::run_case2(&common.planner_config()?, Some(&paper.config()?), &transport, seed)?;
-    let files = report::write_case2(&common.out, &case)?;
-    let s = case.summary();
-    let runs = std::iter::once(("case2", &s.planner)).chain(s.paper_literal.iter().map(|a| ("case2 paper_literal", a)));
-    for (name, a) in runs {
-        println!(
-            "{name}: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
-            a.beta_switches_with,
-            a.beta_switches_without,
-            a.with_hysteresis.collisions,
-            a.without_hysteresis.collisions
-        );
-        println!(
-            "  with hysteresis: {}",
-            report::episode_summary_line(&a.with_hysteresis)
-        );
-        println!(
-            "  without hysteresis: {}",
-            report::episode_summary_line(&a.without_hysteresis)
-        );
-    }
-    print_files(&files);
-    Ok(())
 }
 
 fn print_files(files: &[PathBuf]) {
@@ -488,10 +234,10 @@ fn main() -> Result<()> {
     let mut exit_code = None;
     match cli.command {
         Command::Load(args) => {
-            run_load_command(args, Duration::from_secs(30), false)?;
+            load_command::run_load_command(args, Duration::from_secs(30), false)?;
         }
         Command::Soak { load, max_rss_growth } => {
-            let report = run_load_command(load, Duration::from_secs(3600), true)?;
+            let report = load_command::run_load_command(load, Duration::from_secs(3600), true)?;
             let violations = report.soak_violations(max_rss_growth);
             if violations.is_empty() {
                 println!("soak: PASS (every request answered exactly once by its deadline; planner RSS flat)");
@@ -502,47 +248,24 @@ fn main() -> Result<()> {
                 exit_code = Some(1);
             }
         }
-        Command::LoadWorker {
-            common,
-            clients,
-            rate,
-            duration,
-            deadline_ms,
-            seed,
-            vehicle_id_base,
-            part_out,
-        } => {
-            let (transport, _none) = common.open(None)?;
-            let mut settings = LoadSettings::new(transport, clients, rate, duration);
-            settings.deadline = Duration::from_millis(deadline_ms);
-            settings.seed = seed;
-            settings.vehicle_id_base = vehicle_id_base;
-            settings.planner = common.planner_config()?;
-            let part = load::run_part(&settings, Instant::now())?;
-            std::fs::write(&part_out, serde_json::to_string(&part)?)
-                .with_context(|| format!("writing {}", part_out.display()))?;
-            return Ok(());
-        }
+        Command::LoadWorker(args) => return load_command::run_load_worker(args),
         Command::Case1 {
             common,
             seed,
             paper,
             record,
-        } => run_case1(&common, seed, &paper, record.as_deref())?,
+        } => study_commands::run_case1(&common, seed, &paper, record.as_deref())?,
         Command::Replay { common, replay } => {
             let (transport, _planner) = common.open(None)?;
             replay_command::run_replay(&replay, &transport, &common.planner_config()?)?;
         }
-        Command::Case2 { common, seed, paper } => run_case2(&common, seed, &paper)?,
-        Command::Campaign {
+        Command::Case2 {
             common,
-            trials_scale,
-            config,
             seed,
-            threads,
-            baselines,
             paper,
-        } => run_campaign(&common, trials_scale, config, seed, threads, baselines, &paper)?,
+            record,
+        } => study_commands::run_case2(&common, seed, &paper, record.as_deref())?,
+        Command::Campaign { common, campaign } => study_commands::run_campaign(&common, &campaign)?,
     }
     println!("wall time {:.2} s", started.elapsed().as_secs_f64());
     if let Some(code) = exit_code {

@@ -42,7 +42,13 @@ pub struct SpawnOptions {
     pub config: Option<PathBuf>,
     /// Where its stderr goes (inherited when `None`).
     pub log: Option<PathBuf>,
+    /// `--record` of the planner: it records every request and answer to this MCAP file.
+    pub record: Option<PathBuf>,
 }
+
+/// How long a recording planner may take to complete its file when stopped (it writes what
+/// is queued and the MCAP summary); other planners get the default.
+const RECORDING_GRACE: std::time::Duration = std::time::Duration::from_secs(30);
 
 /// Starts `planner serve` for `serve`.
 pub fn spawn_planner(serve: &Serve, options: &SpawnOptions) -> Result<SpawnedPlanner> {
@@ -78,12 +84,18 @@ pub fn spawn_planner(serve: &Serve, options: &SpawnOptions) -> Result<SpawnedPla
     if let Some(p) = &options.config {
         cmd.arg("--config").arg(p);
     }
+    if let Some(file) = &options.record {
+        cmd.arg("--record").arg(file);
+    }
     if let Some(log) = &options.log {
         cmd.stderr(std::fs::File::create(log).map_err(|e| SimClientError::io(log, e))?);
     }
     let mut process = Supervised::spawn(&mut cmd, true).map_err(|e| SimClientError::io(&planner, e))?;
     if let Some(prefix) = owned {
         process = process.owning(prefix);
+    }
+    if options.record.is_some() {
+        process = process.with_grace(RECORDING_GRACE);
     }
     Ok(SpawnedPlanner {
         process,

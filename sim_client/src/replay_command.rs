@@ -1,12 +1,10 @@
-//! `sim_client replay` and `case1 --record`: the command-line side of recordings.
+//! `sim_client replay`: the command-line side of log replay.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use sim_client::cases;
 use sim_client::log_replay::{read_traffic_log, replay_log, Perturbation};
-use sim_client::record::{write_trial, GroundTruth, TrialInfo};
 use sim_client::Transport;
 
 /// `sim_client replay FILE.mcap`.
@@ -56,32 +54,4 @@ pub fn run_replay(args: &ReplayArgs, transport: &Transport, config: &decision::P
         println!("  wrote {}", path.display());
     }
     Ok(())
-}
-
-/// Runs case 1's planner trial while recording it to `path`.
-pub fn record_case1(
-    config: &decision::PlannerConfig,
-    transport: &Transport,
-    seed: u64,
-    path: &Path,
-) -> Result<cases::CaseRun> {
-    let mut truth = GroundTruth::default();
-    let run = cases::run_case_observed(config, transport, seed, &mut truth)?;
-    let spec = cases::case1_spec(seed, config.perception.max_svs);
-    let info = TrialInfo {
-        label: "case1".into(),
-        seed,
-        lanes: spec.scenario.road.lanes,
-        lane_width_m: spec.scenario.road.lane_width,
-        speed_limit_mps: spec.scenario.road.speed_limit,
-        ego_desired_speed_mps: spec.scenario.ego.desired_speed,
-        low_level_step_s: spec.params.dt,
-        max_svs: spec.max_svs,
-        params: Some(spec.params),
-    };
-    let files = write_trial(path, &info, &truth.steps, &run.episode)?;
-    for f in files {
-        println!("  recorded {}", f.display());
-    }
-    Ok(run)
 }

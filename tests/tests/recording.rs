@@ -1,12 +1,14 @@
 //! Recording and replay: `planner serve --record` during a `sim_client case1` run, the file
 //! read back by the reference Python `mcap` package, `planner replay` as a regression gate
-//! (identical with the same planner, differences and a non-zero exit with another), and bad
-//! files rejected with a clear error.
+//! (identical with the same planner, differences and a non-zero exit with another), bad
+//! files rejected with a clear error; `sim_client case2 --record`, `load --record` and
+//! `--planner-record` (a planner started with `--spawn-planner` recording).
 //!
 //! The Python check needs `python3` with the `mcap` package (`scripts/install-build-deps`
 //! installs the pinned one of clients/mcap_check/requirements.txt); without it the test fails
 //! unless HMDP_SKIP_PYTHON=1.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -28,20 +30,7 @@ fn recorded_case1() -> &'static Recorded {
         let dir = scratch_dir("recording");
         let file = dir.join("planner.mcap");
         let prefix = Iceoryx2Prefix::new("rec");
-        let mut planner = Process::start(
-            "planner",
-            &[
-                "serve",
-                "--iceoryx2",
-                "--iceoryx2-prefix",
-                prefix.as_str(),
-                "--workers",
-                "2",
-                "--record",
-                file.to_str().expect("utf-8 path"),
-            ],
-            "recording-planner",
-        );
+        let mut planner = recording_planner(&prefix, &file, &["--workers", "2"], "recording-planner");
         let csv = case1_decisions(
             &dir,
             "case1",
@@ -81,6 +70,20 @@ fn json_of(out: &Output) -> serde_json::Value {
 
 fn path_str(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
+}
+
+/// `planner serve --iceoryx2` under `prefix`, recording to `file`.
+fn recording_planner(prefix: &Iceoryx2Prefix, file: &Path, extra: &[&str], label: &str) -> Process {
+    let mut args = vec![
+        "serve",
+        "--iceoryx2",
+        "--iceoryx2-prefix",
+        prefix.as_str(),
+        "--record",
+        path_str(file),
+    ];
+    args.extend_from_slice(extra);
+    Process::start("planner", &args, label)
 }
 
 #[test]
@@ -273,4 +276,204 @@ fn log_replay_reproduces_the_recorded_ego_and_scores_a_perturbed_run() {
     assert_eq!(shifted["svs"], same["svs"]);
     let dx = shifted["ego_deviation"]["max_dx_m"].as_f64().expect("number");
     assert!(dx > 0.05, "moved SVs should change the ego's run: {shifted}");
+}
+
+/// Messages per topic of a recording, read with the recording crate's reader.
+fn topic_counts(file: &Path) -> BTreeMap<String, usize> {
+    let mut counts = BTreeMap::new();
+    for m in recording::read_messages(file).unwrap_or_else(|e| panic!("{e}")) {
+        *counts.entry(m.topic).or_insert(0) += 1;
+    }
+    counts
+}
+
+fn csv_rows(path: &Path) -> usize {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines().count() - 1
+}
+
+fn sim_client(args: &[&str]) -> Output {
+    let out = Command::new(binary("sim_client"))
+        .args(args)
+        .output()
+        .expect("sim_client runs");
+    assert!(
+        out.status.success(),
+        "sim_client {args:?}: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn case2_records_each_of_its_runs_to_a_file_of_its_own() {
+    let dir = scratch_dir("case2-recording");
+    let (out_dir, base) = (dir.join("out"), dir.join("c2.mcap"));
+    let out = sim_client(&["case2", "--out", path_str(&out_dir), "--record", path_str(&base)]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let runs = [
+        (
+            "c2.with_hysteresis.mcap",
+            "case2/decisions_with_hysteresis.csv",
+            "case2 with hysteresis",
+        ),
+        (
+            "c2.without_hysteresis.mcap",
+            "case2/decisions_without_hysteresis.csv",
+            "case2 without hysteresis",
+        ),
+        (
+            "c2.paper_literal.with_hysteresis.mcap",
+            "case2/paper_literal/decisions_with_hysteresis.csv",
+            "case2 paper_literal with hysteresis",
+        ),
+        (
+            "c2.paper_literal.without_hysteresis.mcap",
+            "case2/paper_literal/decisions_without_hysteresis.csv",
+            "case2 paper_literal without hysteresis",
+        ),
+    ];
+    for (file, csv, label) in runs {
+        let file = dir.join(file);
+        assert!(stdout.contains(&format!("recorded {}", file.display())), "{stdout}");
+        let counts = topic_counts(&file);
+        assert_eq!(counts.get("/sim/trial"), Some(&1), "{file:?}: {counts:?}");
+        assert_eq!(
+            counts.get("/sim/decision"),
+            Some(&csv_rows(&out_dir.join(csv))),
+            "{file:?}: {counts:?}"
+        );
+        let steps = counts["/sim/vehicles"];
+        assert!(steps > 100, "{file:?}: {counts:?}");
+        assert_eq!(counts["/sim/scene"], steps, "{file:?}: {counts:?}");
+        let trial = recording::read_messages(&file)
+            .expect("read")
+            .into_iter()
+            .find(|m| m.topic == "/sim/trial")
+            .expect("trial");
+        let trial: serde_json::Value = serde_json::from_slice(&trial.data).expect("JSON");
+        assert_eq!(trial["label"], label, "{trial}");
+    }
+    // The run with hysteresis is the default planner's: log replay reproduces its ego.
+    let same = log_replay(&dir.join(runs[0].0), &[], "case2-same");
+    for field in ["max_dx_m", "max_dy_m", "max_dv_mps"] {
+        assert!(
+            same["ego_deviation"][field].as_f64().expect("number") < 0.05,
+            "{field}: {same}"
+        );
+    }
+}
+
+#[test]
+fn a_spawned_planner_records_what_planner_replay_finds_identical() {
+    let dir = scratch_dir("spawned-recording");
+    let (file, log) = (dir.join("spawned.mcap"), dir.join("planner.log"));
+    let csv = case1_decisions(
+        &dir,
+        "case1",
+        &[
+            "--transport",
+            "iceoryx2",
+            "--spawn-planner",
+            "--planner-log",
+            path_str(&log),
+            "--planner-record",
+            path_str(&file),
+        ],
+        &|| std::fs::read_to_string(&log).unwrap_or_default(),
+    );
+    let decisions = String::from_utf8(csv).expect("utf-8 csv").lines().count() - 1;
+    let planner_log = std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(planner_log.contains("recording finished"), "{planner_log}");
+    let out = replay(&[path_str(&file), "--json"]);
+    let report = json_of(&out);
+    assert!(out.status.success(), "{report}");
+    assert_eq!(report["compared"], decisions as u64, "{report}");
+    assert_eq!(report["identical"], decisions as u64, "{report}");
+    assert_eq!(report["unanswered"], 0, "{report}");
+}
+
+#[test]
+fn load_records_what_its_vehicles_sent_and_got_and_it_replays_identically() {
+    let dir = scratch_dir("load-recording");
+    let (vehicles, planner, json) = (
+        dir.join("vehicles.mcap"),
+        dir.join("planner.mcap"),
+        dir.join("load.json"),
+    );
+    #[rustfmt::skip]
+    let out = sim_client(&[
+        "load", "--transport", "iceoryx2", "--spawn-planner", "--planner-workers", "2",
+        "--clients", "2", "--rate", "5", "--duration", "4", "--out", path_str(&dir),
+        "--json", path_str(&json), "--record", path_str(&vehicles), "--planner-record", path_str(&planner),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains(&format!("recorded {}", vehicles.display())), "{stdout}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).expect("report")).expect("JSON");
+    let sent = report["counts"]["sent"].as_u64().expect("sent");
+    let lost = report["counts"]["lost"].as_u64().expect("lost");
+    assert!(sent >= 20, "{report}");
+    let counts = topic_counts(&vehicles);
+    assert_eq!(
+        counts.get("/planner/request").copied(),
+        Some(sent as usize),
+        "{counts:?}"
+    );
+    assert_eq!(
+        counts.get("/planner/response").copied().unwrap_or(0),
+        (sent - lost) as usize,
+        "{counts:?}"
+    );
+    // The vehicles' side and the planner's side: each re-decided identically.
+    for (file, expected) in [(&vehicles, sent - lost), (&planner, sent)] {
+        let out = replay(&[path_str(file), "--json"]);
+        let r = json_of(&out);
+        assert!(out.status.success(), "{file:?}: {r}");
+        assert_eq!(r["compared"], expected, "{file:?}: {r}");
+        assert_eq!(r["identical"], expected, "{file:?}: {r}");
+    }
+}
+
+#[test]
+fn a_request_with_non_finite_numbers_is_recorded_and_replayed() {
+    use transport::iceoryx2::{Client, ClientOptions};
+    let dir = scratch_dir("nan-recording");
+    let file = dir.join("nan.mcap");
+    let prefix = Iceoryx2Prefix::new("nan");
+    let mut planner = recording_planner(&prefix, &file, &[], "nan-planner");
+    let options = ClientOptions {
+        prefix: Some(prefix.as_str().to_string()),
+        ready_timeout: Duration::from_secs(60),
+        node_name: "nan-vehicle".into(),
+        ..ClientOptions::default()
+    };
+    let mut client = Client::connect(&options).expect("the planner's iceoryx2 services");
+    // Probes (not recorded) until the planner answers.
+    let give_up = std::time::Instant::now() + Duration::from_secs(60);
+    while client
+        .request(protocol::PlanRequest::probe(999), Duration::from_millis(500))
+        .expect("probe")
+        .response
+        .is_none()
+    {
+        assert!(std::time::Instant::now() < give_up, "{}", planner.log());
+    }
+    let mut nan = system_tests::worked_example_request(4, 1);
+    nan.ego.v_mps = f64::NAN;
+    let mut inf = system_tests::worked_example_request(4, 2);
+    inf.svs[0].x_m = f64::NEG_INFINITY;
+    for r in [nan, inf, system_tests::worked_example_request(4, 3)] {
+        let answer = client.request(r, Duration::from_secs(5)).expect("exchange");
+        assert!(answer.response.is_some(), "{}", planner.log());
+    }
+    drop(client);
+    let status = planner.terminate(Duration::from_secs(20));
+    assert!(status.is_some_and(|s| s.success()), "{}", planner.log());
+    let out = replay(&[path_str(&file), "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let report = json_of(&out);
+    assert!(out.status.success(), "{report}\n{stderr}");
+    assert_eq!(report["compared"], 3, "{report}");
+    assert_eq!(report["identical"], 3, "{report}");
 }

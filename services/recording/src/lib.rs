@@ -8,10 +8,13 @@
 //!   recording never blocks the answer path.
 //! * [`read_messages`] / [`read_exchanges`]: the reader used by `planner replay` and
 //!   `sim_client replay`; a corrupt, truncated or foreign file is a [`RecordingError`].
+//! * [`json`]: the messages' JSON, with non-finite floats as `"NaN"`, `"inf"`, `"-inf"` so
+//!   that a recorded NaN reads back as NaN.
 //!
 //! Channels and schemas are listed in `docs/recording.md`.
 
 mod error;
+pub mod json;
 mod reader;
 mod recorder;
 pub mod schema;

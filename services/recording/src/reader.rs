@@ -20,7 +20,8 @@ pub struct RecordedMessage {
 }
 
 impl RecordedMessage {
-    /// Decodes the JSON payload; `index` and `path` name it in the error.
+    /// Decodes the JSON payload (see [`crate::json`]); `index` and `path` name it in the
+    /// error.
     pub fn decode<T: serde::de::DeserializeOwned>(&self, path: &Path, index: usize, what: &'static str) -> Result<T> {
         if self.message_encoding != "json" {
             return Err(RecordingError::Encoding {
@@ -29,7 +30,7 @@ impl RecordedMessage {
                 encoding: self.message_encoding.clone(),
             });
         }
-        serde_json::from_slice(&self.data).map_err(|source| RecordingError::Decode {
+        crate::json::from_slice(&self.data).map_err(|source| RecordingError::Decode {
             path: path.to_owned(),
             topic: self.topic.clone(),
             index,

@@ -149,7 +149,7 @@ impl PlanRecorder {
 
     /// Records a statistics document.
     pub fn stats<T: serde::Serialize>(&self, doc: &T) {
-        match serde_json::to_vec(doc) {
+        match crate::json::to_vec(doc) {
             Ok(data) => self.send(Record::Stats(self.log_time(Instant::now()), data)),
             Err(_) => {
                 self.shared.dropped.fetch_add(1, Ordering::Relaxed);

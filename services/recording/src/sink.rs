@@ -169,14 +169,15 @@ impl McapSink {
         Ok(())
     }
 
-    /// Serialises `value` as JSON and writes it.
+    /// Serialises `value` as JSON (non-finite floats as strings, see [`crate::json`]) and
+    /// writes it.
     pub fn write_json<T: serde::Serialize + ?Sized>(
         &mut self,
         channel: usize,
         log_time_ns: u64,
         value: &T,
     ) -> Result<()> {
-        let data = serde_json::to_vec(value).map_err(|source| RecordingError::Encode {
+        let data = crate::json::to_vec(value).map_err(|source| RecordingError::Encode {
             topic: self.channels.get(channel).map_or("?", |c| c.topic).to_owned(),
             source,
         })?;

@@ -4,7 +4,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use protocol::{EgoState, PlanRequest, PlanResponse, RejectReason, Rejected, Road};
+use protocol::containers::Vector;
+use protocol::{EgoState, PlanRequest, PlanResponse, RejectReason, Rejected, Road, SvObservation};
 use recording::{
     read_exchanges, read_messages, McapSink, PlanRecorder, RecorderOptions, RecordingError, Rotation, PLANNER_CHANNELS,
     REQUEST_TOPIC, RESPONSE_TOPIC, STATS_TOPIC,
@@ -147,4 +148,43 @@ fn bad_files_are_typed_errors() {
         }
         other => panic!("{other:?}"),
     }
+}
+
+#[test]
+fn non_finite_floats_are_recorded_so_that_they_replay() {
+    let d = dir();
+    let path = d.path().join("nan.mcap");
+    let mut bad = request(3, 1);
+    bad.ego.v_mps = f64::NAN;
+    bad.road.speed_limit_mps = f64::INFINITY;
+    bad.svs
+        .push(SvObservation::new(7, 20.0, 3.5, f64::NEG_INFINITY, f64::NAN))
+        .expect("room for an SV");
+    let recorder = PlanRecorder::start(&RecorderOptions::new(&path)).expect("recorder");
+    let reply = recorder.wrap_reply(&bad, Instant::now(), |_| {});
+    reply(response(3, 1));
+    recorder.finish().expect("finished");
+    // serde_json alone writes `null`, which no f64 reads back.
+    let raw = read_messages(&path).expect("read");
+    let text = String::from_utf8(raw[0].data.clone()).expect("utf-8");
+    assert!(
+        text.contains(r#""v_mps":"NaN""#) && text.contains(r#""speed_limit_mps":"inf""#),
+        "{text}"
+    );
+    let exchanges = read_exchanges(std::slice::from_ref(&path)).expect("a NaN request reads back");
+    let got = &exchanges.exchanges[0];
+    assert!(got.request.ego.v_mps.is_nan());
+    assert_eq!(got.request.road.speed_limit_mps, f64::INFINITY);
+    let sv = &got.request.svs.as_slice()[0];
+    assert_eq!(sv.v_mps, f64::NEG_INFINITY);
+    assert!(sv.a_mps2.is_nan());
+    // Everything else is as recorded (NaN != NaN: compare with the NaNs cleared).
+    let clear = |r: &PlanRequest| {
+        let mut r = r.clone();
+        r.ego.v_mps = 0.0;
+        r.svs.as_mut_slice()[0].a_mps2 = 0.0;
+        r
+    };
+    assert_eq!(clear(&got.request), clear(&bad));
+    assert_eq!(got.response, Some(response(3, 1)));
 }

@@ -5,7 +5,8 @@
 //! Per request: the round trip, the planner's queueing and solve times (from the answer), the
 //! answering layer, and whether the answer came by the deadline, late (within a grace period),
 //! never (lost), or more than once (duplicated). The planner process's CPU and RSS are sampled
-//! from `/proc` when its pid is known.
+//! from `/proc` when its pid is known. With a recorder, every request and its answer are
+//! recorded as the planner records them (docs/recording.md).
 
 mod multiprocess;
 mod procmon;
@@ -18,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use decision::PlannerConfig;
 
-pub use multiprocess::{run_worker_processes, transport_flags};
+pub use multiprocess::{run_worker_processes, transport_flags, worker_count, worker_record_path};
 pub use procmon::{ProcessMonitor, ProcessReport, ProcessSample};
 pub use report::{Counts, HistogramData, LoadPart, LoadReport, TimelinePoint};
 pub use vehicle::LiveCounters;
@@ -59,6 +60,9 @@ pub struct LoadSettings {
     pub sample_period: Duration,
     /// Shared counters for progress reports while the run goes on.
     pub live: Option<Arc<LiveCounters>>,
+    /// Records every request the vehicles send and the answer each got (`load --record`):
+    /// the vehicles' side of the exchange, which `planner replay` re-decides.
+    pub recorder: Option<recording::PlanRecorder>,
 }
 
 impl LoadSettings {
@@ -80,6 +84,7 @@ impl LoadSettings {
             vehicle_id_base: 1,
             sample_period: Duration::from_secs(1),
             live: None,
+            recorder: None,
         }
     }
 

@@ -1,7 +1,7 @@
 //! `load --processes N`: the vehicles shared among N `sim_client load-worker` children, whose
 //! parts are merged.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use transport::iceoryx2::WaitMode;
 
@@ -35,17 +35,30 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
     flags
 }
 
+/// How many children `load --processes processes` starts for `clients` vehicles.
+pub fn worker_count(clients: usize, processes: usize) -> usize {
+    processes.min(clients).max(1)
+}
+
+/// The recording of child `worker` of `load --processes N --record BASE`: each child records
+/// its own vehicles, to `BASE.worker0.mcap`, `BASE.worker1.mcap`, ...
+pub fn worker_record_path(base: &Path, worker: usize) -> PathBuf {
+    crate::recorded::suffixed(base, &format!("worker{worker}"))
+}
+
 /// Runs `settings.clients` vehicles in `processes` children of this executable (each gets
-/// its share), the planner configuration from `planner_config`; their parts.
+/// its share), the planner configuration from `planner_config`, each recording to
+/// [`worker_record_path`] when `record` is given; their parts.
 pub fn run_worker_processes(
     settings: &LoadSettings,
     processes: usize,
     planner_config: Option<&Path>,
+    record: Option<&Path>,
 ) -> Result<Vec<LoadPart>> {
     let exe = std::env::current_exe().map_err(|e| SimClientError::io("sim_client's executable", e))?;
     let dir = std::env::temp_dir().join(format!("hmdp-load-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| SimClientError::io(&dir, e))?;
-    let n = processes.min(settings.clients).max(1);
+    let n = worker_count(settings.clients, processes);
     let mut children = Vec::new();
     let mut base = settings.vehicle_id_base;
     for i in 0..n {
@@ -64,6 +77,9 @@ pub fn run_worker_processes(
             .arg(&out);
         if let Some(p) = planner_config {
             cmd.arg("--planner-config").arg(p);
+        }
+        if let Some(base) = record {
+            cmd.arg("--record").arg(worker_record_path(base, i));
         }
         let child = supervise::Supervised::spawn(&mut cmd, true).map_err(|e| SimClientError::io(&exe, e))?;
         children.push((child, out));

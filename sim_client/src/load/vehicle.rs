@@ -151,6 +151,13 @@ impl PlannerLink for PacedVehicle<'_> {
             return Err(LinkError::Stopped);
         }
         let trip = self.link.send(body);
+        if let Some(recorder) = &self.settings.recorder {
+            // The answer as it came, also a late or mismatched one: what the vehicle got.
+            recorder.request(&trip.request, trip.sent_at);
+            if let (Some(response), Some(at)) = (&trip.answer.response, trip.answer.answered_at) {
+                recorder.response(response.clone(), at);
+            }
+        }
         let kind = self.stats.record(&trip, self.settings.deadline);
         // A rejection or a late answer: the vehicle decides by itself.
         let planned = match trip.matching_response() {

@@ -1,0 +1,217 @@
+//! `sim_client case1`, `case2` and `campaign`: the paper's studies, optionally recorded.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use sim_client::campaign::{self, CampaignSettings};
+use sim_client::{cases, recorded, report, Transport};
+
+use super::{print_files, Common, TransportKind};
+
+/// The paper-literal preset of the case and campaign commands.
+#[derive(Args)]
+pub struct PaperArgs {
+    /// Planner TOML of the paper-literal preset (default: the embedded deploy/paper.toml).
+    #[arg(long, value_name = "FILE")]
+    paper_config: Option<PathBuf>,
+}
+
+impl PaperArgs {
+    pub fn config(&self) -> Result<decision::PlannerConfig> {
+        Ok(sim_client::presets::paper_literal(self.paper_config.as_deref())?)
+    }
+}
+
+/// `sim_client campaign`.
+#[derive(Args)]
+pub struct CampaignArgs {
+    /// Multiply every trial count by this (at least 1 trial per configuration).
+    #[arg(long, default_value_t = 1.0)]
+    trials_scale: f64,
+    /// Custom configurations (TOML `[[config]]` tables or a JSON list) instead of Table I.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Base seed.
+    #[arg(long, default_value_t = 2026)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Also run the paper-literal preset, the planner without hysteresis and the IDM +
+    /// MOBIL ego.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    baselines: bool,
+    #[command(flatten)]
+    paper: PaperArgs,
+    /// Record the first `--record-trials` trials of every configuration, for every driver,
+    /// into this directory (`config03-trial0-planner.mcap`, ...; docs/recording.md). They are
+    /// run again after the campaign with the same seeds.
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// Trials recorded per configuration and driver (with `--record`).
+    #[arg(long, default_value_t = 1, requires = "record")]
+    record_trials: u32,
+}
+
+pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
+    let CampaignArgs {
+        trials_scale: scale,
+        config,
+        seed,
+        threads,
+        baselines,
+        paper,
+        record,
+        record_trials,
+    } = args;
+    let (scale, seed, baselines, threads) = (*scale, *seed, *baselines, *threads);
+    if common.transport != TransportKind::Inproc && baselines {
+        // A planner process has one configuration; the no-hysteresis baseline needs another.
+        anyhow::bail!("with a remote transport, run the campaign with --baselines false");
+    }
+    let (transport, _planner) = common.open(None)?;
+    let entries = match &config {
+        Some(p) => campaign::load_entries(p)?,
+        None => campaign::paper_entries(),
+    };
+    let entries = campaign::scale_trials(&entries, scale)?;
+    let threads = threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let mut settings = CampaignSettings::new(entries, seed, threads);
+    settings.baselines = baselines;
+    settings.planner = common.planner_config()?;
+    settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
+    settings.transport = transport;
+    let bar = if std::io::stderr().is_terminal() {
+        ProgressBar::new(settings.episode_count() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} episodes, eta {eta}")
+            .expect("valid template"),
+    );
+    let results = campaign::run_campaign(&settings, &|| bar.inc(1))?;
+    bar.finish_and_clear();
+    let files = report::write_campaign(&common.out, &results)?;
+    for g in &results.overall {
+        let share = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v));
+        println!(
+            "{:<22} trials {:>5}  decisions {:>7}  collision rate {:.2}%  NOR {}  GSRR {}  FBR {}  solve mean {:.3} ms p99 {:.3} ms max {:.3} ms",
+            g.driver.name(),
+            g.trials,
+            g.decisions,
+            100.0 * g.collision_rate,
+            share(g.nor),
+            share(g.gsrr),
+            share(g.fbr),
+            g.solve_time.mean_ms,
+            g.solve_time.p99_ms,
+            g.solve_time.max_ms,
+        );
+        let s = &g.safety;
+        println!(
+            "{:<22} collisions at fault {} / hit in lane {} / SV-SV {}  hard brakes {:.1}/h  min TTC p5 {} p50 {} s  TTC<3s {:.2}%  headway<1s {:.2}%  max DRAC {:.2} m/s^2",
+            "",
+            g.collision_split.ego_at_fault,
+            g.collision_split.ego_hit_in_lane,
+            g.collision_split.sv_sv,
+            s.hard_braking_per_hour,
+            s.min_ttc_p5_s.map_or("inf".into(), |v| format!("{v:.2}")),
+            s.min_ttc_p50_s.map_or("inf".into(), |v| format!("{v:.2}")),
+            100.0 * s.ttc_below_3s_share,
+            100.0 * s.headway_below_1s_share,
+            s.max_drac_mps2,
+        );
+    }
+    println!(
+        "campaign wall time {:.1} s on {} thread(s)",
+        results.wall_time_s, results.threads
+    );
+    print_files(&files);
+    if let Some(dir) = record {
+        let files = recorded::record_campaign_trials(&settings, dir, *record_trials)?;
+        println!(
+            "  recorded {} trial(s) ({} per configuration and driver) in {}",
+            files.len(),
+            record_trials,
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+pub fn run_case1(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&Path>) -> Result<()> {
+    let (transport, _planner) = common.open(None)?;
+    let config = common.planner_config()?;
+    let (case, recorded) = match record {
+        Some(path) => {
+            let (planner, files) = recorded::record_case("case1", &config, &transport, seed, path)?;
+            let paper_literal = Some(cases::run_case(&paper.config()?, &Transport::InProcess, seed)?);
+            (cases::Case1 { planner, paper_literal }, files)
+        }
+        None => (
+            cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?,
+            Vec::new(),
+        ),
+    };
+    print_recorded(&recorded);
+    let files = report::write_case1(&common.out, &case)?;
+    println!("case1: {}", report::episode_summary_line(&case.planner.metrics));
+    if let Some(p) = &case.paper_literal {
+        println!("case1 paper_literal: {}", report::episode_summary_line(&p.metrics));
+    }
+    print_files(&files);
+    Ok(())
+}
+
+pub fn run_case2(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&Path>) -> Result<()> {
+    if common.transport != TransportKind::Inproc {
+        // A planner process has one configuration; the ablation needs two.
+        anyhow::bail!("case2 runs the planner with and without hysteresis: use --transport inproc");
+    }
+    // Refuses the remote-transport flags, which mean nothing in process.
+    let (transport, _none) = common.open(None)?;
+    let (config, paper) = (common.planner_config()?, paper.config()?);
+    let case = match record {
+        Some(base) => {
+            let (case, files) = recorded::record_case2(&config, Some(&paper), &transport, seed, base)?;
+            print_recorded(&files);
+            case
+        }
+        None => cases::run_case2(&config, Some(&paper), &transport, seed)?,
+    };
+    let files = report::write_case2(&common.out, &case)?;
+    let s = case.summary();
+    let runs = std::iter::once(("case2", &s.planner)).chain(s.paper_literal.iter().map(|a| ("case2 paper_literal", a)));
+    for (name, a) in runs {
+        println!(
+            "{name}: beta switches with hysteresis {}, without {} (paper: 1 vs 33); collisions {} / {}",
+            a.beta_switches_with,
+            a.beta_switches_without,
+            a.with_hysteresis.collisions,
+            a.without_hysteresis.collisions
+        );
+        println!(
+            "  with hysteresis: {}",
+            report::episode_summary_line(&a.with_hysteresis)
+        );
+        println!(
+            "  without hysteresis: {}",
+            report::episode_summary_line(&a.without_hysteresis)
+        );
+    }
+    print_files(&files);
+    Ok(())
+}
+
+/// Prints the recordings written.
+fn print_recorded(files: &[PathBuf]) {
+    for f in files {
+        println!("  recorded {}", f.display());
+    }
+}
