@@ -32,7 +32,7 @@ pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[Str
         let mut json = serde_json::json!({
             "mode": match mode { Mode::Peer => "peer", Mode::Client => "client" },
             "listen": { "endpoints": listen },
-            "connect": { "endpoints": connect },
+            "connect": { "endpoints": connect, "retry": reconnect() },
             "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
         });
         json.as_object_mut()
@@ -59,6 +59,15 @@ pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[Str
         }
     }
     Ok(config)
+}
+
+/// How a session that lost its peer (a planner restarted, a router failed over) tries again:
+/// after 50 ms, then twice as long each time up to 1 s. Zenoh's default first waits 1 s, and
+/// that second is the whole outage a vehicle sees after a planner restart that takes a few
+/// milliseconds; the cap keeps a long outage at one attempt a second. Set in the built-in
+/// configurations and every shipped file that connects.
+pub fn reconnect() -> serde_json::Value {
+    serde_json::json!({ "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 })
 }
 
 /// Largest Zenoh message any session of the project accepts (a request is at most a few
@@ -265,6 +274,26 @@ mod tests {
         }
     }
 
+    /// The reconnection retry of a configuration that connects.
+    fn assert_reconnects_fast(config: &Config, what: &str) {
+        let retry: serde_json::Value = serde_json::from_str(&config.get_json("connect/retry").unwrap()).unwrap();
+        for (key, want) in reconnect().as_object().unwrap() {
+            assert_eq!(
+                retry[key].as_f64(),
+                want.as_f64(),
+                "{what}: connect/retry/{key} in {retry}"
+            );
+        }
+    }
+
+    #[test]
+    fn built_in_configurations_reconnect_fast() {
+        for mode in [Mode::Peer, Mode::Client] {
+            let config = config(mode, None, &[], &["tcp/127.0.0.1:7447".into()]).unwrap();
+            assert_reconnects_fast(&config, &format!("{mode:?}"));
+        }
+    }
+
     #[test]
     fn every_shipped_configuration_is_hardened() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy/zenoh");
@@ -274,6 +303,10 @@ mod tests {
             if path.extension().is_some_and(|e| e == "json5") {
                 let config = Config::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert_hardened(&config, &path.display().to_string());
+                let text = std::fs::read_to_string(&path).unwrap();
+                if text.contains("\n  connect: {") {
+                    assert_reconnects_fast(&config, &path.display().to_string());
+                }
                 checked += 1;
             }
         }
