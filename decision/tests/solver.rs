@@ -83,3 +83,38 @@ fn deploy_config_is_the_default() {
     let c = PlannerConfig::from_toml_str(&text).unwrap();
     assert_eq!(c, PlannerConfig::default());
 }
+
+/// HiGHS options by name reach the solver: a valid one is taken, an unknown name or a value
+/// of the wrong type is a typed error at construction.
+#[test]
+fn highs_options_are_checked_by_highs() {
+    use decision::config::HighsOptionValue;
+    use decision::SolverError;
+    let with = |name: &str, value: HighsOptionValue| {
+        let mut c = PlannerConfig::default();
+        c.solver.highs_options.insert(name.to_owned(), value);
+        Planner::new(c).map(|_| ())
+    };
+    assert_eq!(with("mip_detect_symmetry", HighsOptionValue::Bool(false)), Ok(()));
+    assert_eq!(with("mip_heuristic_effort", HighsOptionValue::Float(0.1)), Ok(()));
+    for (name, value) in [
+        ("no_such_option", HighsOptionValue::Bool(true)),
+        ("mip_detect_symmetry", HighsOptionValue::Text("sideways".into())),
+        ("mip_heuristic_effort", HighsOptionValue::Float(-1.0)),
+    ] {
+        let shown = value.to_string();
+        assert_eq!(
+            with(name, value),
+            Err(DecisionError::Solver(SolverError::Option {
+                name: name.to_owned(),
+                value: shown
+            })),
+            "{name}"
+        );
+    }
+    // And from TOML, as a user writes it.
+    let c = PlannerConfig::from_toml_str("[solver.highs_options]\nmip_detect_symmetry = false\nmip_max_nodes = 1000\n")
+        .unwrap();
+    assert_eq!(c.solver.highs_options["mip_max_nodes"], HighsOptionValue::Int(1000));
+    assert!(Planner::new(c).is_ok());
+}
