@@ -187,6 +187,9 @@ impl HighsSolver {
         solver.set_double("mip_abs_gap", 1e-9)?;
         // Costs ~3 ms per solve and never pays on models this small.
         solver.set_bool("mip_heuristic_run_feasibility_jump", false)?;
+        // The models have few symmetric columns to find; looking for them cost 8 % of the mean
+        // solve time on the 0.03 campaign slice, with identical decisions.
+        solver.set_bool("mip_detect_symmetry", false)?;
         solver.set_double("time_limit", time_limit_s)?;
         // HiGHS 1.16's presolve declared feasible models with the continuous input
         // infeasible (the oracle's optimum satisfies every row; with presolve off HiGHS finds
