@@ -136,7 +136,7 @@ pub struct IdmParams {
     /// at this deceleration (m/s^2, a magnitude) as soon as its maneuver state allows,
     /// whichever allows more: a deep violation (a cut-in close ahead) is then recovered by
     /// comfortable braking, not the strongest. The floor rows keep the decay alone. 0: the
-    /// decay alone.
+    /// decay alone; with `violation_decay = 0` (the margin holds at once) it does nothing.
     pub violation_recovery_mps2: f64,
 }
 

@@ -253,8 +253,10 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
 /// The decay alone asks a deep violation (a cut-in 20 m ahead inside a 120 m margin) to
 /// shrink by a fifth of it per step, which only the strongest braking achieves, and none at
 /// all from an accelerating state: the problem is infeasible and the fallback answers.
-/// Recovering at a comfortable deceleration is what a driver does; the reference rollout is
-/// feasible for these rows by construction, and the floor rows keep the decay alone.
+/// Recovering at a comfortable deceleration is what a driver does. The reference rollout
+/// meets these rows by construction (with one fixed acceleration per state, braking at that
+/// harder one meets them too, as the margin falls and the gap grows with braking); the floor
+/// rows keep the decay alone.
 fn violation_allowance(
     ctx: &Context,
     ahead: bool,

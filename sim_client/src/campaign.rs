@@ -5,8 +5,6 @@
 //! results are aggregated in the fixed item order, so they do not depend on the thread count.
 
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 use decision::PlannerConfig;
 use serde::{Deserialize, Serialize};
@@ -163,7 +161,8 @@ impl DriverKind {
         }
     }
 
-    fn planner_config(self, settings: &CampaignSettings) -> Option<PlannerConfig> {
+    /// The planner configuration this driver runs with (`None`: the IDM + MOBIL ego).
+    pub fn planner_config(self, settings: &CampaignSettings) -> Option<PlannerConfig> {
         let mut c = settings.planner.clone();
         match self {
             DriverKind::PaperLiteral => settings.paper_literal.clone(),
@@ -500,44 +499,16 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
         }
     }
     let threads = settings.threads.clamp(1, items.len().max(1));
-    let next = AtomicUsize::new(0);
-    let failed = AtomicBool::new(false);
-    let slots: Mutex<Vec<Option<Result<TrialOutcome>>>> = Mutex::new((0..items.len()).map(|_| None).collect());
-    std::thread::scope(|scope| {
-        for _ in 0..threads {
-            scope.spawn(|| {
-                let mut worker = Worker {
-                    settings,
-                    links: Vec::new(),
-                };
-                loop {
-                    if failed.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(item) = items.get(i) else { break };
-                    let outcome = worker.run(item);
-                    if outcome.is_err() {
-                        failed.store(true, Ordering::Relaxed);
-                    }
-                    slots.lock().expect("no worker panics while holding the lock")[i] = Some(outcome);
-                    on_episode();
-                }
-            });
-        }
-    });
-    let slots = slots.into_inner().expect("workers are done");
-    let mut outcomes = Vec::with_capacity(slots.len());
-    for slot in slots {
-        match slot {
-            Some(Ok(o)) => outcomes.push(o),
-            Some(Err(e)) => return Err(e),
-            None => {} // skipped after another item failed; that error is returned above
-        }
-    }
-    if outcomes.len() != items.len() {
-        return Err(SimClientError::Config("campaign aborted".into()));
-    }
+    let outcomes = crate::pool::run_ordered(
+        &items,
+        threads,
+        || Worker {
+            settings,
+            links: Vec::new(),
+        },
+        |worker, item| worker.run(item),
+        on_episode,
+    )?;
     let mut groups = Vec::new();
     for e in &settings.entries {
         for &d in &drivers {

@@ -23,6 +23,7 @@ pub mod metrics;
 pub mod paper;
 pub mod planner_process;
 pub mod plot;
+pub mod pool;
 pub mod prediction;
 pub mod presets;
 pub mod record;

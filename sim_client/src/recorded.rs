@@ -3,7 +3,6 @@
 //! trial (docs/recording.md).
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use decision::PlannerConfig;
 
@@ -122,17 +121,6 @@ pub fn campaign_trial_path(dir: &Path, config_id: u32, trial: u32, driver: Drive
     dir.join(format!("config{config_id:02}-trial{trial}-{}.mcap", driver.name()))
 }
 
-/// The planner configuration of a campaign driver (`None`: the IDM + MOBIL ego), as the
-/// campaign runs it.
-fn driver_config(driver: DriverKind, settings: &CampaignSettings) -> Option<PlannerConfig> {
-    match driver {
-        DriverKind::Planner => Some(settings.planner.clone()),
-        DriverKind::PlannerNoHysteresis => Some(cases::ablation_configs(&settings.planner).1),
-        DriverKind::PaperLiteral => settings.paper_literal.clone(),
-        DriverKind::IdmMobil => None,
-    }
-}
-
 /// Runs trial `trial` of configuration `entry` with `driver` again and records it.
 fn record_campaign_trial(
     settings: &CampaignSettings,
@@ -144,7 +132,7 @@ fn record_campaign_trial(
     let entry = &settings.entries[entry];
     let spec = trial_spec(entry, trial, settings)?;
     let mut truth = GroundTruth::default();
-    let episode: Episode = match driver_config(driver, settings) {
+    let episode: Episode = match driver.planner_config(settings) {
         None => run_episode_observed(&spec, Driver::IdmMobil, &mut truth)?,
         Some(config) => {
             let mut link = settings.transport.connect(config)?;
@@ -172,36 +160,14 @@ pub fn record_campaign_trials(settings: &CampaignSettings, dir: &Path, trials: u
         .flat_map(|(i, t)| drivers.iter().map(move |&d| (i, t, d)))
         .collect();
     std::fs::create_dir_all(dir).map_err(|e| SimClientError::io(dir, e))?;
-    let next = AtomicUsize::new(0);
-    let mut done: Vec<(usize, Result<Vec<PathBuf>>)> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..settings.threads.clamp(1, items.len().max(1)))
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some(&(entry, trial, driver)) = items.get(i) else {
-                            break out;
-                        };
-                        out.push((i, record_campaign_trial(settings, entry, trial, driver, dir)));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| {
-                w.join()
-                    .unwrap_or_else(|_| vec![(0, Err(SimClientError::Config("a recording thread panicked".into())))])
-            })
-            .collect()
-    });
-    done.sort_by_key(|(i, _)| *i);
-    let mut files = Vec::new();
-    for (_, r) in done {
-        files.extend(r?);
-    }
-    Ok(files)
+    let files = crate::pool::run_ordered(
+        &items,
+        settings.threads,
+        || (),
+        |_, &(entry, trial, driver)| record_campaign_trial(settings, entry, trial, driver, dir),
+        &|| {},
+    )?;
+    Ok(files.into_iter().flatten().collect())
 }
 
 #[cfg(test)]
