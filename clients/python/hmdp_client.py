@@ -7,6 +7,7 @@ Sends a perception snapshot (a JSON ``PlanRequest``, see docs/protocol.md) to a 
     python3 hmdp_client.py --connect tcp/127.0.0.1:7447                 # built-in snapshot
     python3 hmdp_client.py --connect tcp/127.0.0.1:7447 --request snapshot.json
     python3 hmdp_client.py --connect tcp/127.0.0.1:7447 --steps 5 --stats
+    python3 hmdp_client.py --connect tcp/127.0.0.1:7447 --planner-key planner.key.pub
 
 The planner keeps no state per vehicle: its hysteresis memory travels with the messages.
 ``--steps N`` shows how a vehicle carries it: it sends N consecutive snapshots and feeds the
@@ -21,11 +22,19 @@ Output (stdout, one JSON object per line):
 * a rejection: ``{"step", "vehicle_id", "sequence", "rejected": {"reason", "field"}}``;
 * with ``--stats``, last: ``{"stats": {...}}``, the planner's statistics document.
 
+With ``--planner-key`` (the ``.pub`` file of ``planner keygen``) every answer must carry the
+planner's signature: an answer that does not verify (a forged planner, an unsigned answer) is
+refused and counted on stderr, and the client waits for the real one until its timeout.
+Without it every answer is taken, signed or not (docs/protocol.md, "Authentication").
+
+Every request carries its send time (``sent_at_ns``, Unix time in ns): a planner that gets
+it older than its deadline answers ``stale_fallback`` at once.
+
 Exit code: 0 every request was decided, 2 a request was rejected (reason and field are also
 printed on stderr; no later snapshot is sent), 1 no decision otherwise (no planner, timeout,
-an answer this client cannot read, a bad command line or request file).
+an answer this client cannot read or verify, a bad command line or request file).
 
-Only dependency: eclipse-zenoh (see requirements.txt).
+Dependencies: eclipse-zenoh; cryptography for --planner-key (see requirements.txt).
 """
 
 import argparse
@@ -33,12 +42,15 @@ import copy
 import json
 import sys
 import threading
+import time
 
 import zenoh
 
+import hmdp_signing
+
 PLAN_KEY = "hmdp/planner/plan"  # queryable of `planner serve` (protocol::names)
 STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3  # also in the iceoryx2 type names: hmdp::PlanRequest/v3
 # The JSON form is chosen by the query's encoding; anything else is read as bincode.
 JSON_ENCODING = "application/json"
 
@@ -114,20 +126,32 @@ def open_session(endpoint):
         raise NoAnswer(f"cannot connect to {endpoint}: {e}") from e
 
 
-def ask(session, request, timeout_s):
-    """Sends one PlanRequest (a dict) as JSON; returns the PlanResponse as a dict."""
+def ask(session, request, timeout_s, verifier=None, refused=None):
+    """Sends one PlanRequest (a dict) as JSON, stamped with its send time; returns the
+    PlanResponse as a dict.
+
+    With `verifier` (a hmdp_signing.Verifier) an answer that does not verify is refused (its
+    SignatureError is appended to `refused`, a list, when given) and the next one is awaited.
+    """
+    request["sent_at_ns"] = time.time_ns()
     replies = session.get(
         PLAN_KEY,
         payload=json.dumps(request).encode(),
         encoding=zenoh.Encoding(JSON_ENCODING),
         timeout=timeout_s,
+        # Every reply as it comes: with consolidation a forged reply could hide the planner's.
+        consolidation=zenoh.ConsolidationMode.NONE,
     )
-    # The planner sends exactly one reply; the loop ends at the first one or at the timeout.
+    why = None
+    # The planner sends exactly one reply; the loop ends at the first one taken, when every
+    # queryable has replied, or at the timeout.
     for reply in replies:
         if reply.ok is None:
             # Zenoh itself answers "Timeout" when the query's timeout runs out.
             error = reply.err.payload.to_string()
-            raise NoAnswer(f"no answer within {timeout_s} s" if error == "Timeout" else f"error reply: {error}")
+            if error == "Timeout":
+                break
+            raise NoAnswer(f"error reply: {error}")
         try:
             response = json.loads(reply.ok.payload.to_bytes())
         except ValueError as e:  # not UTF-8 or not JSON: not the JSON form asked for
@@ -135,7 +159,17 @@ def ask(session, request, timeout_s):
         # Another protocol version may be laid out differently: check it before anything else.
         if response.get("version") != PROTOCOL_VERSION:
             raise NoAnswer(f"response of protocol version {response.get('version')}, expected {PROTOCOL_VERSION}")
+        if verifier is not None:
+            try:
+                verifier.verify(response)
+            except hmdp_signing.SignatureError as e:
+                why = e
+                if refused is not None:
+                    refused.append(e)
+                continue
         return response
+    if why is not None:
+        raise NoAnswer(f"no verified answer within {timeout_s} s (refused: {why})")
     raise NoAnswer(f"no answer within {timeout_s} s")
 
 
@@ -148,7 +182,8 @@ def summary(step, response):
     decided = outcome["decided"]
     return {
         **head,
-        "layer": decided["layer"],  # nominal, global_relaxation, fallback or watchdog_fallback
+        # nominal, global_relaxation, fallback, watchdog_fallback or stale_fallback
+        "layer": decided["layer"],
         "action": decided["action"],  # first action of the plan
         "next_maneuver": decided["next_maneuver"],  # the maneuver to command now
         "setpoint": decided["setpoint"],  # accel_mps2 to command now, target_speed_mps at the step's end
@@ -225,12 +260,17 @@ def load_request(path):
 
 def run(args):
     request = load_request(args.request)
+    try:
+        verifier = hmdp_signing.Verifier.from_file(args.planner_key) if args.planner_key else None
+    except (OSError, ValueError, ImportError) as e:
+        raise BadInput(f"planner key {args.planner_key}: {e}") from e
+    refused = []
     session = open_session(args.connect)
     try:
         stats = StatsListener(session) if args.stats else None
         code = 0
         for step in range(1, args.steps + 1):
-            response = ask(session, request, args.timeout)
+            response = ask(session, request, args.timeout, verifier, refused)
             line = summary(step, response)
             print(json.dumps(line, indent=2 if args.pretty else None), flush=True)
             if "rejected" in line:
@@ -248,6 +288,8 @@ def run(args):
                 print(json.dumps({"stats": document}, indent=2 if args.pretty else None), flush=True)
         return code
     finally:
+        if refused:
+            print(f"refused {len(refused)} answers that did not verify: {refused[-1]}", file=sys.stderr)
         session.close()
 
 
@@ -259,6 +301,9 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=1, help="consecutive snapshots, carrying the memory")
     parser.add_argument("--stats", action="store_true", help="also print the planner's statistics")
     parser.add_argument("--pretty", action="store_true", help="indent the JSON output")
+    parser.add_argument(
+        "--planner-key", metavar="FILE.pub", help="the planner's public key: refuse answers that do not verify"
+    )
     parser.add_argument(
         "--print-example", action="store_true", help="print the built-in snapshot (a template for --request) and exit"
     )

@@ -26,7 +26,7 @@ VEHICLE_VARIABLES = (
     tc.VAR_WIDTH,
 )
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 MAX_SVS = 64  # protocol::MAX_SVS: the nearest this many go into a request
 
 

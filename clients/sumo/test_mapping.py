@@ -112,7 +112,7 @@ class Requests(unittest.TestCase):
             "car.1": vehicle(480.0, 1, lat=0.5, v=31.0),
         }
         r = self.request(context)
-        self.assertEqual(r["version"], 2)
+        self.assertEqual(r["version"], 3)
         self.assertEqual(r["timestamp_ns"], 160_400_000_000)
         self.assertEqual(r["ego"], {"x_m": 502.5, "y_m": 7.0, "v_mps": 28.0, "desired_speed_mps": 33.33, "maneuver": {"lane": 1, "beta": -1}})
         # Ids in order of first sight, the list sorted by id; the ego is not an SV.

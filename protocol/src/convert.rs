@@ -103,6 +103,7 @@ impl PlanRequest {
             sequence,
             timestamp_ns,
             deadline_us: 0,
+            sent_at_ns: 0,
             road: situation.road.into(),
             ego: situation.ego.into(),
             svs: converted("svs", &situation.svs)?,
@@ -216,13 +217,14 @@ pub fn answer(planner: &mut decision::Planner, request: &PlanRequest) -> PlanRes
     }
 }
 
-/// The deterministic fallback for `request`, marked [`Layer::WatchdogFallback`]: what the
-/// service answers when a deadline runs out or the queue is full. `queue_us` is 0.
-pub fn fallback_answer(config: &decision::PlannerConfig, request: &PlanRequest) -> PlanResponse {
+/// The deterministic fallback for `request`, marked `layer`: [`Layer::WatchdogFallback`]
+/// when a deadline runs out or the queue is full, [`Layer::StaleFallback`] for a request
+/// that arrived too old. `queue_us` is 0.
+pub fn fallback_answer(config: &decision::PlannerConfig, request: &PlanRequest, layer: Layer) -> PlanResponse {
     match decision::fallback_only(config, &request.to_situation()) {
         Ok(decision) => match Decided::try_from(&decision) {
             Ok(mut decided) => {
-                decided.set_layer(Layer::WatchdogFallback);
+                decided.set_layer(layer);
                 PlanResponse::decided(request.vehicle_id, request.sequence, decided, 0, 0)
             }
             Err(_) => internal_error(request),

@@ -149,6 +149,9 @@ wire_enum! {
         Fallback = 2 => "fallback",
         /// The service's watchdog answered with the fallback because the deadline ran out.
         WatchdogFallback = 3 => "watchdog_fallback",
+        /// The request was already older than its deadline when it arrived (by its
+        /// `sent_at_ns`): the fallback at once, no solve of the old scene.
+        StaleFallback = 4 => "stale_fallback",
     }
 }
 

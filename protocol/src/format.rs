@@ -124,8 +124,8 @@ pub mod layout {
     pub const VEHICLE_ID: usize = 2;
     /// `sequence`.
     pub const SEQUENCE: usize = VEHICLE_ID + 8;
-    /// After `timestamp_ns` (8) and `deadline_us` (4).
-    const ROAD: usize = SEQUENCE + 8 + 8 + 4;
+    /// After `timestamp_ns` (8), `deadline_us` (4) and `sent_at_ns` (8).
+    const ROAD: usize = SEQUENCE + 8 + 8 + 4 + 8;
     /// `lanes` (1) and two `f64`.
     const EGO: usize = ROAD + 1 + 2 * 8;
     /// The `u64` count of the SV list: after four `f64` and the maneuver (2).

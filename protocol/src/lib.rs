@@ -6,6 +6,7 @@
 //! * Codecs: [`encode_bincode`] / [`decode_bincode`] with a fixed configuration
 //!   ([`BINCODE_CONFIG`]), [`encode_json`] / [`decode_json`]; errors are [`WireError`].
 //! * [`PlanRequest::validate`]: what the wire alone can check.
+//! * [`staleness`]: when a request is too old to solve; [`signing`]: signed answers.
 //! * [`names`]: iceoryx2 service names, Zenoh key expressions, encodings.
 //! * With the `decision` feature: conversions to and from the decision core's types.
 //!
@@ -23,6 +24,8 @@ mod format;
 mod messages;
 pub mod names;
 mod serde_util;
+pub mod signing;
+pub mod staleness;
 mod validate;
 
 pub use codec::{
@@ -35,11 +38,13 @@ pub use enums::{Layer, RejectReason};
 pub use format::{layout, WireFormat};
 pub use messages::{
     bounded, Action, ActionList, CorrectiveEntry, CorrectiveList, Decided, EgoState, FieldName, Maneuver, Outcome,
-    OutcomeRef, PlanRequest, PlanResponse, PlanStep, PlanStepList, PlannerMemory, Rejected, Road, SetPoint, SvList,
-    SvObservation, DEFAULT_DEADLINE, FIELD_NAME_CAPACITY, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS, PROBE_VERSION,
-    PROTOCOL_VERSION,
+    OutcomeRef, PlanRequest, PlanResponse, PlanStep, PlanStepList, PlannerMemory, Rejected, Road, SetPoint, Signature,
+    SvList, SvObservation, DEFAULT_DEADLINE, FIELD_NAME_CAPACITY, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS, PROBE_VERSION,
+    PROTOCOL_VERSION, SIGNATURE_LENGTH,
 };
 pub use names::*;
+pub use signing::{KeyError, ResponseSigner, ResponseVerifier, VerifyError};
+pub use staleness::{unix_now_ns, DEFAULT_CLOCK_SKEW_TOLERANCE};
 
 /// The iceoryx2 building blocks the payloads are made of, re-exported so that users need no
 /// direct dependency: `StaticVec` with its `Vector` trait (`push`, `len`, ...), `StaticString`,

@@ -14,12 +14,12 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::enums::{layer_code, reject_reason_code, Layer, RejectReason};
-use crate::serde_util::{bounded_str, bounded_vec};
+use crate::serde_util::{bounded_str, bounded_vec, signature_bytes};
 use crate::WireError;
 
 /// Version of the wire contract. Carried first in every message and in the iceoryx2
-/// `type_name` of the payloads (`.../v2`).
-pub const PROTOCOL_VERSION: u16 = 2;
+/// `type_name` of the payloads (`.../v3`).
+pub const PROTOCOL_VERSION: u16 = 3;
 /// The version of a readiness probe ([`PlanRequest::probe`]); never a protocol version.
 pub const PROBE_VERSION: u16 = 0;
 /// At most this many SVs in a request (the decision core's `MAX_INPUT_SVS`; the planner uses
@@ -47,7 +47,7 @@ pub type FieldName = StaticString<FIELD_NAME_CAPACITY>;
 
 /// The road as the planner sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Road/v2")]
+#[type_name("hmdp::Road/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Road {
@@ -61,7 +61,7 @@ pub struct Road {
 
 /// Discrete maneuver state: target lane and longitudinal state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Maneuver/v2")]
+#[type_name("hmdp::Maneuver/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Maneuver {
@@ -73,7 +73,7 @@ pub struct Maneuver {
 
 /// One action: lateral (`-1` = change to the left) and longitudinal change, each in `-1..=1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Action/v2")]
+#[type_name("hmdp::Action/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Action {
@@ -83,7 +83,7 @@ pub struct Action {
 
 /// The ego's state and current maneuver.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::EgoState/v2")]
+#[type_name("hmdp::EgoState/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct EgoState {
@@ -100,7 +100,7 @@ pub struct EgoState {
 
 /// One perceived surrounding vehicle. Positions are of the vehicle's centre.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::SvObservation/v2")]
+#[type_name("hmdp::SvObservation/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct SvObservation {
@@ -140,7 +140,7 @@ impl SvObservation {
 
 /// Hysteresis state of one SV in corrective mode.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::CorrectiveEntry/v2")]
+#[type_name("hmdp::CorrectiveEntry/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct CorrectiveEntry {
@@ -153,7 +153,7 @@ pub struct CorrectiveEntry {
 
 /// What the planner remembers between decisions; the vehicle sends back what it last got.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlannerMemory/v2")]
+#[type_name("hmdp::PlannerMemory/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlannerMemory {
@@ -167,7 +167,7 @@ pub struct PlannerMemory {
 
 /// A perception snapshot asking for a decision.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanRequest/v2")]
+#[type_name("hmdp::PlanRequest/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanRequest {
@@ -181,6 +181,11 @@ pub struct PlanRequest {
     /// Deadline for the answer, µs after receipt; 0 = [`DEFAULT_DEADLINE`]. Optional in JSON.
     #[serde(default)]
     pub deadline_us: u32,
+    /// When the request was sent, ns since the Unix epoch on a clock the vehicle and the
+    /// planner share; 0 = unknown. The planner answers a request older than its deadline on
+    /// arrival as stale ([`crate::staleness`]). Optional in JSON.
+    #[serde(default)]
+    pub sent_at_ns: u64,
     pub road: Road,
     pub ego: EgoState,
     /// Perceived SVs, at most [`MAX_SVS`].
@@ -200,6 +205,7 @@ impl PlanRequest {
             sequence,
             timestamp_ns,
             deadline_us: 0,
+            sent_at_ns: 0,
             road,
             ego,
             svs: SvList::new(),
@@ -233,7 +239,7 @@ impl PlanRequest {
 
 /// One step of the planned sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanStep/v2")]
+#[type_name("hmdp::PlanStep/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanStep {
@@ -251,7 +257,7 @@ pub struct PlanStep {
 /// What to command now: the first step's longitudinal acceleration and the speed it reaches
 /// at the end of the first step.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::SetPoint/v2")]
+#[type_name("hmdp::SetPoint/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct SetPoint {
@@ -263,7 +269,7 @@ pub struct SetPoint {
 
 /// A decision.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Decided/v2")]
+#[type_name("hmdp::Decided/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Decided {
@@ -319,7 +325,7 @@ impl Decided {
 
 /// A rejection: a typed reason and the offending field.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::Rejected/v2")]
+#[type_name("hmdp::Rejected/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct Rejected {
@@ -377,7 +383,7 @@ impl Rejected {
 /// is an externally tagged enum: `{"decided": {...}}` / `{"rejected": {...}}` in JSON, a
 /// `u32` variant index (0 decided, 1 rejected) followed by the body in bincode.
 #[derive(Debug, Clone, ZeroCopySend)]
-#[type_name("hmdp::Outcome/v2")]
+#[type_name("hmdp::Outcome/v3")]
 #[repr(C)]
 pub struct Outcome {
     kind: u8,
@@ -482,7 +488,7 @@ impl<'de> Deserialize<'de> for Outcome {
 
 /// The planner's answer to a [`PlanRequest`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ZeroCopySend)]
-#[type_name("hmdp::PlanResponse/v2")]
+#[type_name("hmdp::PlanResponse/v3")]
 #[serde(deny_unknown_fields)]
 #[repr(C)]
 pub struct PlanResponse {
@@ -497,6 +503,11 @@ pub struct PlanResponse {
     /// Time the request waited before deciding started, µs.
     pub queue_us: u32,
     pub outcome: Outcome,
+    /// Ed25519 signature of the bincode encoding of every field before it; all zeros =
+    /// unsigned ([`crate::signing`]). Last so that the signed bytes are a prefix of the
+    /// encoding. Optional in JSON.
+    #[serde(with = "signature_bytes", default)]
+    pub signature: Signature,
 }
 
 impl PlanResponse {
@@ -509,6 +520,7 @@ impl PlanResponse {
             solve_us,
             queue_us,
             outcome: Outcome::decided(decided),
+            signature: Signature::UNSIGNED,
         }
     }
 
@@ -521,7 +533,32 @@ impl PlanResponse {
             solve_us: 0,
             queue_us,
             outcome: Outcome::rejected(rejected),
+            signature: Signature::UNSIGNED,
         }
+    }
+}
+
+/// Length of an Ed25519 signature, bytes.
+pub const SIGNATURE_LENGTH: usize = 64;
+
+/// The signature of a [`PlanResponse`]: 64 bytes, all zeros when unsigned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[type_name("hmdp::Signature/v3")]
+#[repr(C)]
+pub struct Signature(pub [u8; SIGNATURE_LENGTH]);
+
+impl Signature {
+    /// No signature.
+    pub const UNSIGNED: Self = Self([0; SIGNATURE_LENGTH]);
+
+    pub fn is_unsigned(&self) -> bool {
+        *self == Self::UNSIGNED
+    }
+}
+
+impl Default for Signature {
+    fn default() -> Self {
+        Self::UNSIGNED
     }
 }
 

@@ -104,3 +104,62 @@ pub(crate) mod bounded_str {
         }
     }
 }
+
+/// [`Signature`](crate::Signature): its 64 bytes as they are in binary formats (no length),
+/// 128 lowercase hex digits in human-readable ones, the empty string when unsigned.
+pub(crate) mod signature_bytes {
+    use super::*;
+    use crate::messages::{Signature, SIGNATURE_LENGTH};
+    use serde::ser::SerializeTuple;
+
+    pub fn serialize<S: Serializer>(signature: &Signature, serializer: S) -> Result<S::Ok, S::Error> {
+        if serializer.is_human_readable() {
+            if signature.is_unsigned() {
+                return serializer.serialize_str("");
+            }
+            let hex: String = signature.0.iter().map(|b| format!("{b:02x}")).collect();
+            serializer.serialize_str(&hex)
+        } else {
+            let mut tuple = serializer.serialize_tuple(SIGNATURE_LENGTH)?;
+            for byte in &signature.0 {
+                tuple.serialize_element(byte)?;
+            }
+            tuple.end()
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Signature, D::Error> {
+        if deserializer.is_human_readable() {
+            deserializer.deserialize_str(SignatureVisitor)
+        } else {
+            deserializer.deserialize_tuple(SIGNATURE_LENGTH, SignatureVisitor)
+        }
+    }
+
+    struct SignatureVisitor;
+
+    impl<'de> Visitor<'de> for SignatureVisitor {
+        type Value = Signature;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "{SIGNATURE_LENGTH} signature bytes (128 hex digits, or empty)")
+        }
+
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<Signature, E> {
+            if v.is_empty() {
+                return Ok(Signature::UNSIGNED);
+            }
+            crate::signing::parse_hex::<SIGNATURE_LENGTH>(v)
+                .map(Signature)
+                .ok_or_else(|| E::invalid_value(de::Unexpected::Str(v), &self))
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Signature, A::Error> {
+            let mut out = [0u8; SIGNATURE_LENGTH];
+            for (i, byte) in out.iter_mut().enumerate() {
+                *byte = seq.next_element()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
+            }
+            Ok(Signature(out))
+        }
+    }
+}

@@ -135,17 +135,17 @@ fn trailing_bytes_are_rejected() {
 fn wrong_version_is_reported_with_the_carried_version() {
     let mut req = example_request();
     req.version = 1;
-    let expected = Err(WireError::UnsupportedVersion { found: 1, supported: 2 });
+    let expected = Err(WireError::UnsupportedVersion { found: 1, supported: 3 });
     assert_eq!(decode_bincode::<PlanRequest>(&encode_bincode(&req)), expected);
     assert_eq!(decode_json_str::<PlanRequest>(&encode_json(&req)), expected);
-    // Even when the rest is not a v2 body.
+    // Even when the rest is not a v3 body, and the previous version.
     assert_eq!(
         decode_bincode::<PlanRequest>(&[0x07, 0x00, 0xff]),
-        Err(WireError::UnsupportedVersion { found: 7, supported: 2 })
+        Err(WireError::UnsupportedVersion { found: 7, supported: 3 })
     );
     assert_eq!(
-        decode_json_str::<PlanRequest>(r#"{"version": 3, "something": "else"}"#),
-        Err(WireError::UnsupportedVersion { found: 3, supported: 2 })
+        decode_json_str::<PlanRequest>(r#"{"version": 2, "something": "else"}"#),
+        Err(WireError::UnsupportedVersion { found: 2, supported: 3 })
     );
     let rejected = req.validate().unwrap_err();
     assert_eq!(rejected.reason(), Ok(RejectReason::UnsupportedVersion));
@@ -155,7 +155,7 @@ fn wrong_version_is_reported_with_the_carried_version() {
     resp.version = 9;
     assert_eq!(
         decode_bincode::<PlanResponse>(&encode_bincode(&resp)),
-        Err(WireError::UnsupportedVersion { found: 9, supported: 2 })
+        Err(WireError::UnsupportedVersion { found: 9, supported: 3 })
     );
     assert!(matches!(
         resp.validate(),
@@ -188,7 +188,8 @@ fn capacity_overflow_is_rejected() {
     let mut req = example_request();
     req.svs.clear();
     let base = encode_bincode(&req);
-    let svs_at = 2 + 8 + 8 + 8 + 4 + 17 + 34;
+    let svs_at = 2 + 8 + 8 + 8 + 4 + 8 + 17 + 34;
+    assert_eq!(svs_at, protocol::layout::SVS_COUNT);
     assert_eq!(&base[svs_at..svs_at + 8], &0u64.to_le_bytes());
     let mut bytes = base[..svs_at].to_vec();
     bytes.extend_from_slice(&65u64.to_le_bytes());
@@ -262,17 +263,14 @@ fn unknown_enum_values_are_rejected() {
     let layer_at = header + 4 + 2 + 2 + 16 + 8 + 2 * 22;
     assert_eq!(bytes[layer_at], Layer::Nominal.code());
     let mut b = bytes.clone();
-    b[layer_at] = 4;
+    b[layer_at] = 5;
     assert!(matches!(
         decode_bincode::<PlanResponse>(&b),
         Err(WireError::UnknownEnumValue(_))
     ));
-    b[layer_at] = 3;
+    b[layer_at] = 4;
     let decided = decode_bincode::<PlanResponse>(&b).unwrap();
-    assert_eq!(
-        decided.outcome.as_decided().unwrap().layer(),
-        Ok(Layer::WatchdogFallback)
-    );
+    assert_eq!(decided.outcome.as_decided().unwrap().layer(), Ok(Layer::StaleFallback));
 }
 
 #[test]
@@ -287,7 +285,7 @@ fn checked_accessors_reject_unknown_codes() {
     resp.outcome = Outcome::decided(decided);
     assert_eq!(resp.validate(), Ok(()));
 
-    assert_eq!(Layer::from_code(4), None);
+    assert_eq!(Layer::from_code(5), None);
     assert_eq!(RejectReason::from_code(0), None);
     for reason in RejectReason::ALL {
         assert_eq!(RejectReason::from_code(reason.code()), Some(*reason));
@@ -363,7 +361,7 @@ fn json_is_natural() {
 fn type_names_carry_the_version() {
     let suffix = format!("/v{PROTOCOL_VERSION}");
     let names = unsafe { [PlanRequest::type_name(), PlanResponse::type_name()] };
-    assert_eq!(names, ["hmdp::PlanRequest/v2", "hmdp::PlanResponse/v2"]);
+    assert_eq!(names, ["hmdp::PlanRequest/v3", "hmdp::PlanResponse/v3"]);
     for name in names {
         assert!(name.ends_with(&suffix), "{name}");
     }
@@ -378,4 +376,55 @@ fn names_are_stable() {
     assert_eq!(ZENOH_STATS_KEY, "hmdp/planner/stats");
     assert_eq!(ENCODING_BINCODE, "application/x-hmdp-bincode");
     assert_eq!(ENCODING_JSON, "application/json");
+}
+
+#[test]
+fn the_signature_is_the_last_64_bytes_and_hex_in_json() {
+    let signed = example_response();
+    assert!(!signed.signature.is_unsigned());
+    let bytes = encode_bincode(&signed);
+    assert_eq!(bytes[bytes.len() - SIGNATURE_LENGTH..], signed.signature.0);
+    // One byte short: truncated, not a shorter signature.
+    assert_eq!(
+        decode_bincode::<PlanResponse>(&bytes[..bytes.len() - 1]),
+        Err(WireError::Truncated)
+    );
+    let value: serde_json::Value = serde_json::from_str(&encode_json(&signed)).unwrap();
+    assert_eq!(value["signature"].as_str().unwrap().len(), 2 * SIGNATURE_LENGTH);
+    assert_eq!(decode_json_str::<PlanResponse>(&value.to_string()), Ok(signed.clone()));
+    // Unsigned: the empty string, and the field may be omitted.
+    let unsigned = example_rejection();
+    let mut value: serde_json::Value = serde_json::from_str(&encode_json(&unsigned)).unwrap();
+    assert_eq!(value["signature"], "");
+    value.as_object_mut().unwrap().remove("signature");
+    assert_eq!(decode_json_str::<PlanResponse>(&value.to_string()), Ok(unsigned));
+    // Anything but 128 hex digits or "" is malformed.
+    for bad in [
+        "00",
+        "zz".repeat(SIGNATURE_LENGTH).as_str(),
+        &"0".repeat(2 * SIGNATURE_LENGTH + 2),
+    ] {
+        let mut value: serde_json::Value = serde_json::from_str(&encode_json(&signed)).unwrap();
+        value["signature"] = bad.into();
+        assert!(matches!(
+            decode_json_str::<PlanResponse>(&value.to_string()),
+            Err(WireError::Malformed(_))
+        ));
+    }
+    // The documented example verifies with the example key; a bincode round trip keeps that.
+    let verifier = example_signer().verifier();
+    assert_eq!(verifier.verify(&signed), Ok(()));
+    assert_eq!(verifier.verify(&decode_bincode(&bytes).unwrap()), Ok(()));
+}
+
+#[test]
+fn the_send_time_is_optional_in_json() {
+    let req = example_request();
+    let mut value: serde_json::Value = serde_json::from_str(&encode_json(&req)).unwrap();
+    assert_eq!(value["sent_at_ns"], req.sent_at_ns);
+    value.as_object_mut().unwrap().remove("sent_at_ns");
+    assert_eq!(
+        decode_json_str::<PlanRequest>(&value.to_string()).unwrap().sent_at_ns,
+        0
+    );
 }

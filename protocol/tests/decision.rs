@@ -24,6 +24,7 @@ proptest! {
         prop_assert_eq!(decoded.to_situation(), situation);
         let mut with_deadline = back;
         with_deadline.deadline_us = req.deadline_us;
+        with_deadline.sent_at_ns = req.sent_at_ns;
         prop_assert_eq!(with_deadline, req);
     }
 }
@@ -203,9 +204,14 @@ fn answer_validates_decides_and_echoes() {
         (Ok(RejectReason::NegativeSpeed), "ego.v_mps")
     );
     // The watchdog's answer is the fallback, marked as the watchdog's, with a set-point.
-    let fallback = fallback_answer(&PlannerConfig::default(), &req);
+    let fallback = fallback_answer(&PlannerConfig::default(), &req, Layer::WatchdogFallback);
     let decided = fallback.outcome.as_decided().expect("a decision");
     assert_eq!(decided.layer(), Ok(Layer::WatchdogFallback));
+    // A stale request gets the same fallback under its own mark.
+    let stale = fallback_answer(&PlannerConfig::default(), &req, Layer::StaleFallback);
+    let stale_decided = stale.outcome.as_decided().expect("a decision");
+    assert_eq!(stale_decided.layer(), Ok(Layer::StaleFallback));
+    assert_eq!(stale_decided.setpoint, decided.setpoint);
     let core = decision::fallback_only(&PlannerConfig::default(), &req.to_situation()).unwrap();
     assert_eq!(decision::SetPoint::from(decided.setpoint), core.setpoint);
 }

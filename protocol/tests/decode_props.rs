@@ -69,7 +69,7 @@ fn reference_request(bytes: &[u8]) -> Kind {
         if version != PROTOCOL_VERSION {
             return Err(Kind::UnsupportedVersion(version));
         }
-        r.take(8 + 8 + 8 + 4)?; // vehicle_id, sequence, timestamp_ns, deadline_us
+        r.take(8 + 8 + 8 + 4 + 8)?; // vehicle_id, sequence, timestamp_ns, deadline_us, sent_at_ns
         r.take(1 + 8 + 8)?; // road
         r.take(4 * 8 + 2)?; // ego
         r.list(MAX_SVS as u64, 4 + 7 * 8)?;
@@ -166,7 +166,7 @@ fn full_request() -> PlanRequest {
 
 /// Offsets of the three list counts in a request with `svs` SVs and `corrective` entries.
 fn count_offsets(svs: usize, corrective: usize) -> [usize; 3] {
-    let svs_at = 2 + 8 + 8 + 8 + 4 + 17 + 34;
+    let svs_at = 2 + 8 + 8 + 8 + 4 + 8 + 17 + 34;
     let corrective_at = svs_at + 8 + 60 * svs;
     [svs_at, corrective_at, corrective_at + 8 + 20 * corrective]
 }
@@ -263,8 +263,8 @@ fn the_reference_agrees_on_valid_requests() {
         assert_eq!(reference_request(&bytes), Kind::Ok);
         assert_eq!(decode_bincode::<PlanRequest>(&bytes), Ok(req));
     }
-    assert_eq!(encode_bincode(&example_request()).len(), 167);
-    assert_eq!(encode_bincode(&full_request()).len(), 105 + 60 * 64 + 20 * 16 + 2 * 6);
+    assert_eq!(encode_bincode(&example_request()).len(), 175);
+    assert_eq!(encode_bincode(&full_request()).len(), 113 + 60 * 64 + 20 * 16 + 2 * 6);
 }
 
 #[test]
@@ -321,8 +321,8 @@ fn every_single_byte_corruption_of_a_valid_request_is_typed() {
 #[test]
 fn corruptions_reach_every_wire_rejection() {
     let bytes = encode_bincode(&example_request());
-    let beta_at = 0x50;
-    let plan_at = 0xa5;
+    let beta_at = 0x58;
+    let plan_at = 0xad;
     for (at, byte, expected) in [
         (beta_at, 0x02, Some((RejectReason::BetaOutOfRange, "ego.maneuver.beta"))),
         (beta_at, 0xff, None),
@@ -456,7 +456,7 @@ fn json_edge_inputs_are_typed() {
         (b"{\"version\": 1", Kind::Truncated),
         (b"null", Kind::Malformed),
         (b"{}", Kind::Malformed),
-        (b"{\"version\": 2}", Kind::Malformed),
+        (b"{\"version\": 3}", Kind::Malformed),
         (b"\xff\xfe", Kind::Malformed),
         (b"{} {}", Kind::TrailingBytes(2)),
         (b"1e999", Kind::Malformed),
@@ -522,8 +522,8 @@ fn over_capacity_list_is_named() {
         WireFormat::Json.over_capacity_field(encode_json(&full).as_bytes()),
         None
     );
-    // Offsets of the three counts: the SV list at byte 81, then each list's elements.
-    let svs_at = 81;
+    // Offsets of the three counts: the SV list at byte 89, then each list's elements.
+    let svs_at = 89;
     let corrective_at = svs_at + 8 + MAX_SVS * 60;
     let plan_at = corrective_at + 8 + MAX_CORRECTIVE * 20;
     let lists = [

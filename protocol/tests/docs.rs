@@ -47,6 +47,10 @@ fn annotated_request(r: &PlanRequest) -> Vec<(String, Vec<u8>)> {
         format!("deadline_us: u32 = {}", r.deadline_us),
         &r.deadline_us.to_le_bytes(),
     );
+    put(
+        format!("sent_at_ns: u64 = {}", r.sent_at_ns),
+        &r.sent_at_ns.to_le_bytes(),
+    );
     put(format!("road.lanes: u8 = {}", r.road.lanes), &[r.road.lanes]);
     put(
         format!("road.lane_width_m: f64 = {:?}", r.road.lane_width_m),
@@ -192,17 +196,27 @@ fn documented_layout_matches_the_encoder() {
         decode_json_str::<PlanResponse>(block("json-response")),
         Ok(example_response())
     );
+    // The documented example key signed the documented decision.
+    let key: [u8; 32] = signing::parse_hex(block("example-key")).unwrap();
+    assert_eq!(key, [0x01; 32]);
+    let public: [u8; 32] = signing::parse_hex(block("example-public-key")).unwrap();
+    assert_eq!(
+        example_signer().verifier(),
+        ResponseVerifier::from_bytes(&public).unwrap()
+    );
 }
 
 #[test]
 fn documented_rejection_bytes_match_the_encoder() {
-    let mut expected = vec![0x02, 0x00];
+    let mut expected = vec![0x03, 0x00];
     expected.extend_from_slice(&7u64.to_le_bytes());
     expected.extend_from_slice(&43u64.to_le_bytes());
     expected.extend_from_slice(&[0, 0, 0, 0, 5, 0, 0, 0, 1, 0, 0, 0, 0x0c]);
     expected.extend_from_slice(&9u64.to_le_bytes());
     expected.extend_from_slice(b"ego.v_mps");
+    expected.extend_from_slice(&[0; SIGNATURE_LENGTH]);
     assert_eq!(encode_bincode(&example_rejection()), expected);
+    assert!(DOC.contains("then the 9 ASCII bytes of `ego.v_mps` and 64 zero bytes (unsigned)"));
     assert!(DOC.contains("`01 00 00 00` (variant 1 = rejected), `0c` (reason 12 = `negative_speed`)"));
 }
 

@@ -4,6 +4,7 @@ use std::fmt;
 use std::time::Duration;
 
 use decision::PlannerConfig;
+use protocol::ResponseVerifier;
 use transport::iceoryx2::{ClientOptions, Iceoryx2Channel, WaitMode};
 use transport::inproc::InProcessChannel;
 use transport::zenoh::{ZenohChannel, ZenohTarget};
@@ -24,8 +25,10 @@ pub enum Transport {
         prefix: Option<String>,
         /// How the vehicle waits for its answer (`--busy-poll` spins).
         wait: WaitMode,
+        /// The planner's public key (`--planner-key`): answers that do not verify are refused.
+        verifier: Option<ResponseVerifier>,
     },
-    /// A `planner serve` process over Zenoh.
+    /// A `planner serve` process over Zenoh (with the planner's public key, if any).
     Zenoh(ZenohTarget),
 }
 
@@ -74,12 +77,13 @@ impl Transport {
                 options.ready_timeout,
                 options.deadline + options.answer_grace,
             )?),
-            Transport::Iceoryx2 { prefix, wait } => {
+            Transport::Iceoryx2 { prefix, wait, verifier } => {
                 let client = ClientOptions {
                     prefix: prefix.clone(),
                     ready_timeout: options.ready_timeout,
                     node_name: format!("hmdp-vehicle-{}", options.vehicle_id),
                     wait: *wait,
+                    verifier: verifier.clone(),
                 };
                 Box::new(Iceoryx2Channel::connect(&client, options.vehicle_id)?)
             }

@@ -185,6 +185,8 @@ pub struct LinkCounts {
     pub local_fallbacks: u64,
     /// Answers beyond the first for one request (0 with a correct planner).
     pub duplicates: u64,
+    /// Answers refused because they did not verify with the planner's key.
+    pub refused: u64,
 }
 
 /// One request's trip over a [`RemoteLink`].
@@ -259,6 +261,7 @@ impl RemoteLink {
         request.vehicle_id = self.options.vehicle_id;
         request.sequence = self.sequence;
         request.timestamp_ns = u64::try_from(self.started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        request.sent_at_ns = protocol::unix_now_ns();
         let server_deadline = self.options.deadline.saturating_sub(self.options.transport_margin);
         request.deadline_us = u32::try_from(server_deadline.as_micros()).unwrap_or(u32::MAX).max(1);
         let wait = if self.options.wait_for_late {
@@ -274,6 +277,7 @@ impl RemoteLink {
             }
         };
         self.counts.duplicates += answer.extra_responses as u64;
+        self.counts.refused += answer.refused.len() as u64;
         Trip {
             request,
             sent_at,
@@ -316,13 +320,14 @@ impl PlannerLink for RemoteLink {
 impl Drop for RemoteLink {
     fn drop(&mut self) {
         let c = self.counts;
-        if c.local_fallbacks > 0 || c.duplicates > 0 {
+        if c.local_fallbacks > 0 || c.duplicates > 0 || c.refused > 0 {
             tracing::warn!(
                 transport = self.channel.name(),
                 local_fallbacks = c.local_fallbacks,
                 duplicates = c.duplicates,
+                refused = c.refused,
                 answered = c.answered,
-                "remote link: decisions made by the vehicle's own fallback or duplicated answers"
+                "remote link: decisions made by the vehicle's own fallback, duplicated or refused answers"
             );
         }
     }

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use protocol::ResponseVerifier;
 use sim_client::connect::BUSY_POLL_WINDOW;
 use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPlanner};
 use sim_client::{Transport, ZenohTarget};
@@ -77,11 +78,33 @@ struct Common {
     /// MCAP file (`planner serve --record`; complete when the run ends and the planner stops).
     #[arg(long, value_name = "FILE.mcap", requires = "spawn_planner")]
     planner_record: Option<PathBuf>,
+    /// The planner's public key (`planner keygen`'s `.pub` file): answers that do not verify
+    /// (forged, altered, unsigned) are refused and counted; without it every answer is taken.
+    #[arg(long, value_name = "FILE")]
+    planner_key: Option<PathBuf>,
+    /// The same key as 64 hex digits (how `load` hands it to its worker processes).
+    #[arg(long, value_name = "HEX", hide = true, conflicts_with = "planner_key")]
+    planner_public_key: Option<String>,
 }
 
 impl Common {
     fn planner_config(&self) -> Result<decision::PlannerConfig> {
         Ok(supervise::planner_config(self.planner_config.as_deref())?)
+    }
+
+    /// The planner's public key, when given.
+    fn verifier(&self) -> Result<Option<ResponseVerifier>> {
+        if let Some(path) = &self.planner_key {
+            return Ok(Some(ResponseVerifier::from_file(path)?));
+        }
+        self.planner_public_key
+            .as_deref()
+            .map(|hex| {
+                protocol::signing::parse_hex(hex)
+                    .and_then(|bytes| ResponseVerifier::from_bytes(&bytes))
+                    .ok_or_else(|| anyhow::anyhow!("--planner-public-key is not an Ed25519 public key"))
+            })
+            .transpose()
     }
 
     /// Checks that the flags fit the transport, starts the planner if asked to, and builds the
@@ -97,11 +120,21 @@ impl Common {
             };
             spawn_planner(&serve, &options)
         };
+        let verifier = self.verifier()?;
+        if verifier.is_some() && self.spawn_planner {
+            // A spawned planner has no signing key: every answer would be refused.
+            anyhow::bail!("--planner-key needs a planner started with --signing-key, not --spawn-planner");
+        }
         match self.transport {
             TransportKind::Inproc => {
-                if zenoh_flags || self.iceoryx2_prefix.is_some() || self.spawn_planner || self.busy_poll {
+                if zenoh_flags
+                    || self.iceoryx2_prefix.is_some()
+                    || self.spawn_planner
+                    || self.busy_poll
+                    || verifier.is_some()
+                {
                     anyhow::bail!(
-                        "--zenoh-*, --iceoryx2-prefix, --busy-poll and --spawn-planner need --transport zenoh or iceoryx2"
+                        "--zenoh-*, --iceoryx2-prefix, --busy-poll, --planner-key and --spawn-planner need --transport zenoh or iceoryx2"
                     );
                 }
                 Ok((Transport::InProcess, None))
@@ -113,6 +146,7 @@ impl Common {
                 let mut target = ZenohTarget {
                     endpoint: self.zenoh_connect.clone(),
                     config_file: self.zenoh_config.clone(),
+                    verifier,
                 };
                 let planner = match (zenoh_flags, self.spawn_planner) {
                     (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),
@@ -150,7 +184,7 @@ impl Common {
                 } else {
                     WaitMode::Event
                 };
-                Ok((Transport::Iceoryx2 { prefix, wait }, planner))
+                Ok((Transport::Iceoryx2 { prefix, wait, verifier }, planner))
             }
         }
     }

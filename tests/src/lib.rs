@@ -137,7 +137,7 @@ impl ZenohPlanner {
 /// request number `sequence`.
 pub fn worked_example_request(vehicle_id: u64, sequence: u64) -> protocol::PlanRequest {
     let mut r: protocol::PlanRequest = protocol::decode_json_str(
-        r#"{"version":2,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
+        r#"{"version":3,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
             "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
             "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
             "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,

@@ -32,6 +32,7 @@ fn vehicle(planner: &Planner) -> ZenohChannel {
     let target = ZenohTarget {
         endpoint: Some(planner.endpoint.clone()),
         config_file: None,
+        verifier: None,
     };
     ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
         .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))

@@ -276,7 +276,7 @@ fn snapshot(v_ego: f64, svs: &[(u32, f64, u8, f64)]) -> Value {
         })
         .collect();
     json!({
-        "version": 2,
+        "version": 3,
         "vehicle_id": 11,
         "sequence": 1,
         "timestamp_ns": 5_000_000_000u64,

@@ -35,6 +35,7 @@ impl Client {
         let target = ZenohTarget {
             endpoint: Some(endpoint.to_string()),
             config_file: None,
+            verifier: None,
         };
         let channel = ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
             .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", log()));
@@ -128,8 +129,8 @@ fn garbage_and_wrong_versions_are_rejected_with_their_reason() {
         assert_eq!(replies.len(), 1);
         decode_bincode(&replies[0]).unwrap()
     };
-    // Garbage (version field reads 2, rest is nonsense).
-    let garbage = one(client.ask_raw(&[2, 0, 0xff, 0xfe, 0x13], bincode(), Duration::from_secs(5)));
+    // Garbage (version field reads 3, rest is nonsense).
+    let garbage = one(client.ask_raw(&[3, 0, 0xff, 0xfe, 0x13], bincode(), Duration::from_secs(5)));
     assert_eq!(rejection(&garbage), RejectReason::Malformed);
     // Garbage that does not even carry a version.
     let garbage = one(client.ask_raw(&[0xde, 0xad, 0xbe, 0xef], bincode(), Duration::from_secs(5)));
@@ -140,9 +141,9 @@ fn garbage_and_wrong_versions_are_rejected_with_their_reason() {
         ),
         "{garbage:?}"
     );
-    // A wrong protocol version.
+    // A wrong protocol version (the previous one).
     let mut bytes = encode_bincode(&request(5, 9));
-    bytes[0] = 3;
+    bytes[0] = 2;
     let wrong = one(client.ask_raw(&bytes, bincode(), Duration::from_secs(5)));
     assert_eq!(rejection(&wrong), RejectReason::UnsupportedVersion);
     assert_eq!(wrong.outcome.as_rejected().unwrap().field(), "version");
@@ -278,7 +279,7 @@ fn faults_get_typed_answers_and_other_vehicles_are_unaffected() {
         full.svs.push(extra).unwrap();
     }
     let mut bytes = encode_bincode(&full);
-    const SVS_LENGTH_OFFSET: usize = 81; // docs/protocol.md: the `svs` length, u64 LE
+    const SVS_LENGTH_OFFSET: usize = 89; // docs/protocol.md: the `svs` length, u64 LE
     const SV_SIZE: usize = 60;
     assert_eq!(bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8], 64u64.to_le_bytes());
     bytes[SVS_LENGTH_OFFSET..SVS_LENGTH_OFFSET + 8].copy_from_slice(&65u64.to_le_bytes());

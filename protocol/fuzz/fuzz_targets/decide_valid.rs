@@ -98,6 +98,7 @@ fn request(u: &mut Unstructured) -> Result<PlanRequest> {
     };
     let mut r = PlanRequest::new(u.arbitrary()?, u.arbitrary()?, u.arbitrary()?, road, ego);
     r.deadline_us = u.arbitrary()?;
+    r.sent_at_ns = u.arbitrary()?;
     for _ in 0..u.int_in_range(0..=MAX_SVS)? {
         let sv = SvObservation {
             // A small id space makes duplicates (a typed rejection) reachable.

@@ -34,7 +34,7 @@ def main():
         "request-pretty.json": json.dumps(json_request, indent=2).encode(),
         # Optional fields left out.
         "request-minimal.json": json.dumps(
-            {k: v for k, v in json_request.items() if k not in ("deadline_us", "memory")}
+            {k: v for k, v in json_request.items() if k not in ("deadline_us", "sent_at_ns", "memory")}
         ).encode(),
         "response.json": block(doc, "json-response").encode(),
         "rejection.json": block(doc, "json-rejection").encode(),

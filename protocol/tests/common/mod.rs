@@ -104,16 +104,17 @@ pub fn memory() -> impl Strategy<Value = PlannerMemory> {
 
 pub fn request() -> impl Strategy<Value = PlanRequest> {
     (
-        (any::<u64>(), any::<u64>(), any::<u64>(), any::<u32>()),
+        (any::<u64>(), any::<u64>(), any::<u64>(), any::<u32>(), any::<u64>()),
         road(),
         ego(),
         vec(sv(), 0..=MAX_SVS),
         memory(),
     )
         .prop_map(
-            |((vehicle_id, sequence, timestamp_ns, deadline_us), road, ego, svs, memory)| {
+            |((vehicle_id, sequence, timestamp_ns, deadline_us, sent_at_ns), road, ego, svs, memory)| {
                 let mut r = PlanRequest::new(vehicle_id, sequence, timestamp_ns, road, ego);
                 r.deadline_us = deadline_us;
+                r.sent_at_ns = sent_at_ns;
                 r.svs = list(svs);
                 r.memory = memory;
                 r
@@ -164,15 +165,31 @@ pub fn response() -> impl Strategy<Value = PlanResponse> {
         any::<u32>(),
         any::<u32>(),
         prop_oneof![decided, rejected],
+        prop_oneof![
+            Just(Signature::UNSIGNED),
+            vec(any::<u8>(), SIGNATURE_LENGTH).prop_map(signature)
+        ],
     )
-        .prop_map(|(vehicle_id, sequence, solve_us, queue_us, outcome)| PlanResponse {
-            version: PROTOCOL_VERSION,
-            vehicle_id,
-            sequence,
-            solve_us,
-            queue_us,
-            outcome,
-        })
+        .prop_map(
+            |(vehicle_id, sequence, solve_us, queue_us, outcome, signature)| PlanResponse {
+                version: PROTOCOL_VERSION,
+                vehicle_id,
+                sequence,
+                solve_us,
+                queue_us,
+                outcome,
+                signature,
+            },
+        )
+}
+
+fn signature(bytes: Vec<u8>) -> Signature {
+    Signature(bytes.try_into().unwrap_or([0; SIGNATURE_LENGTH]))
+}
+
+/// The documented example key (a secret everybody knows: for tests and examples only).
+pub fn example_signer() -> ResponseSigner {
+    ResponseSigner::from_seed(&[0x01; 32])
 }
 
 /// The small request documented byte for byte in docs/protocol.md.
@@ -190,6 +207,7 @@ pub fn example_request() -> PlanRequest {
         maneuver: Maneuver { lane: 2, beta: 0 },
     };
     let mut r = PlanRequest::new(7, 42, 1_000_000_000, road, ego);
+    r.sent_at_ns = 1_767_225_600_000_000_000;
     r.svs
         .push(SvObservation {
             vy_mps: 0.25,
@@ -251,13 +269,15 @@ pub fn example_response() -> PlanResponse {
         accel_mps2: 0.0,
         target_speed_mps: 25.0,
     };
-    PlanResponse::decided(
+    let mut r = PlanResponse::decided(
         7,
         42,
         Decided::new(keep, m, setpoint, plan, Layer::Nominal, memory),
         1850,
         12,
-    )
+    );
+    example_signer().sign(&mut r);
+    r
 }
 
 /// The rejection documented in docs/protocol.md.

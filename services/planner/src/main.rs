@@ -10,7 +10,9 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use decision::PlannerConfig;
 use planner::service::{Service, ServiceConfig, QUEUE_PER_WORKER};
+use protocol::ResponseSigner;
 use recording::{PlanRecorder, RecorderOptions, Rotation};
+use supervise::ServiceSection;
 use tokio::sync::oneshot;
 use transport::iceoryx2::{ServerOptions, WaitMode};
 
@@ -60,6 +62,13 @@ enum Command {
     /// `hmdp/planner/plan`, statistics on `hmdp/planner/stats`) until SIGINT or SIGTERM.
     /// See docs/service.md.
     Serve(ServeArgs),
+    /// Make an Ed25519 key pair for signed answers: OUT (the secret seed, mode 0600, for
+    /// `serve --signing-key` or `[service] signing_key`) and OUT.pub (the public key, for the
+    /// vehicles). Refuses to overwrite. See docs/deploy.md.
+    Keygen {
+        /// The secret key file to write, e.g. /etc/hmdp/planner.key.
+        out: PathBuf,
+    },
     /// Re-decide every request of a recording (`serve --record`) and compare with the recorded
     /// answers; exit code 1 on any difference. See docs/recording.md.
     Replay {
@@ -142,14 +151,35 @@ struct ServeArgs {
     /// that run faster than real time must not.
     #[arg(long, default_value_t = 0.0)]
     vehicle_rate_limit: f64,
+    /// Sign every answer with this Ed25519 key (`planner keygen`); replaces `[service]
+    /// signing_key` of --config. Without a key answers are unsigned.
+    #[arg(long, value_name = "FILE")]
+    signing_key: Option<PathBuf>,
+    /// How far vehicle and planner clocks may disagree: a request older than its deadline
+    /// plus this (by its `sent_at_ns`) is answered as stale. Replaces `[service]
+    /// clock_skew_tolerance_ms`; default 50ms.
+    #[arg(long, value_parser = humantime::parse_duration)]
+    clock_skew_tolerance: Option<Duration>,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
 }
 
-/// The service core's settings from the command line.
-fn service_config(args: &ServeArgs) -> ServiceConfig {
+/// The service core's settings from the command line and the `[service]` table.
+fn service_config(args: &ServeArgs, file: &ServiceSection) -> Result<ServiceConfig> {
     let mut config = ServiceConfig::default();
+    if let Some(path) = args.signing_key.as_ref().or(file.signing_key.as_ref()) {
+        let signer = ResponseSigner::from_file(path)?;
+        tracing::info!(key = %path.display(), public_key = %signer.verifier().to_hex(), "signing answers");
+        config.signer = Some(signer);
+    } else {
+        tracing::warn!("no signing key: answers are unsigned (docs/deploy.md, \"Signed answers\")");
+    }
+    if let Some(tolerance) = args.clock_skew_tolerance {
+        config.clock_skew_tolerance = tolerance;
+    } else if let Some(ms) = file.clock_skew_tolerance_ms {
+        config.clock_skew_tolerance = Duration::from_millis(ms);
+    }
     if let Some(w) = args.workers {
         config.workers = w.max(1);
         config.queue_capacity = QUEUE_PER_WORKER * config.workers;
@@ -163,7 +193,43 @@ fn service_config(args: &ServeArgs) -> ServiceConfig {
         burst: args.vehicle_rate_limit.max(1.0),
     });
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
-    config
+    Ok(config)
+}
+
+/// Writes a new key pair: `out` (secret seed, 0600) and `out.pub`.
+fn keygen(out: &std::path::Path) -> Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut seed = [0u8; protocol::signing::KEY_LENGTH];
+    getrandom::fill(&mut seed).map_err(|e| anyhow::anyhow!("the system's random source: {e}"))?;
+    let signer = ResponseSigner::from_seed(&seed);
+    let public = out.with_extension(match out.extension() {
+        Some(ext) => format!("{}.pub", ext.to_string_lossy()),
+        None => "pub".into(),
+    });
+    let write = |path: &std::path::Path, text: String, mode: u32| -> Result<()> {
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(mode)
+            .open(path)
+            .with_context(|| format!("creating {}", path.display()))?;
+        file.write_all(format!("{text}\n").as_bytes())
+            .with_context(|| format!("writing {}", path.display()))
+    };
+    // Neither file may exist: never half a pair, never a key vehicles already trust replaced.
+    if let Some(existing) = [out, public.as_path()].into_iter().find(|p| p.exists()) {
+        anyhow::bail!("{} exists: not overwritten", existing.display());
+    }
+    write(out, signer.seed_hex(), 0o600)?;
+    write(&public, signer.verifier().to_hex(), 0o644)?;
+    println!(
+        "secret key: {}\npublic key: {} ({})",
+        out.display(),
+        public.display(),
+        signer.verifier().to_hex()
+    );
+    Ok(())
 }
 
 /// The iceoryx2 server's settings from the command line.
@@ -253,8 +319,8 @@ fn serve(args: ServeArgs) -> Result<()> {
             "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
         );
     }
-    let planner_config = supervise::planner_config(args.config.as_deref())?;
-    let config = service_config(&args);
+    let (planner_config, service_file) = supervise::planner_files(args.config.as_deref())?;
+    let config = service_config(&args, &service_file)?;
     if !config.inject_solve_delay.is_zero() {
         tracing::warn!(ms = args.inject_solve_delay_ms, "TEST ONLY: injected solve delay");
     }
@@ -460,6 +526,7 @@ fn main() -> Result<()> {
             }
         }
         Command::DefaultConfig => print!("{}", PlannerConfig::default().to_toml_string()),
+        Command::Keygen { out } => keygen(&out)?,
         Command::Serve(args) => serve(args)?,
         Command::Replay { files, config, json } => {
             let code = replay(&files, config.as_deref(), json)?;

@@ -38,7 +38,7 @@ pub struct ReplayReport {
     pub different: usize,
     /// Of these, answers from another layer (or a rejection where a decision was, or back).
     pub layer_different: usize,
-    /// Recorded answers of the watchdog, compared with the fallback.
+    /// Recorded answers of the watchdog (and stale requests), compared with the fallback.
     pub watchdog_answers: usize,
     /// Requests without a recorded answer (not compared).
     pub unanswered: usize,
@@ -118,11 +118,11 @@ pub fn differing_fields(recorded: &PlanResponse, replayed: &PlanResponse) -> Vec
     }
 }
 
-fn is_watchdog(response: &PlanResponse) -> bool {
-    response
-        .outcome
-        .as_decided()
-        .is_some_and(|d| d.layer() == Ok(Layer::WatchdogFallback))
+/// The layer of a fallback the service (not the decision core) chose: the watchdog's or the
+/// stale request's; these are replayed as the same fallback.
+fn service_fallback(response: &PlanResponse) -> Option<Layer> {
+    let layer = response.outcome.as_decided()?.layer().ok()?;
+    matches!(layer, Layer::WatchdogFallback | Layer::StaleFallback).then_some(layer)
 }
 
 /// Re-decides every answered request of `exchanges` with one planner built from `config`.
@@ -137,9 +137,9 @@ pub fn replay(config: &PlannerConfig, exchanges: &Exchanges) -> Result<ReplayRep
             report.unanswered += 1;
             continue;
         };
-        let replayed = if is_watchdog(recorded) {
+        let replayed = if let Some(layer) = service_fallback(recorded) {
             report.watchdog_answers += 1;
-            protocol::fallback_answer(config, request)
+            protocol::fallback_answer(config, request, layer)
         } else {
             protocol::answer(&mut planner, request)
         };

@@ -10,6 +10,9 @@
 //! * The watchdog thread answers `decision::fallback_only` marked
 //!   [`protocol::Layer::WatchdogFallback`] when a deadline runs out, interrupts the running HiGHS solve
 //!   and makes the worker discard its late result.
+//! * A request already older than its deadline by its `sent_at_ns`, on arrival or when a
+//!   worker takes it, gets the fallback marked [`protocol::Layer::StaleFallback`], unsolved.
+//! * With a signing key every answer is signed on its way out ([`protocol::signing`]).
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -21,7 +24,7 @@ use std::time::{Duration, Instant};
 
 use decision::{InterruptHandle, Planner, PlannerConfig};
 use hdrhistogram::Histogram;
-use protocol::{PlanRequest, PlanResponse, WireFormat, DEFAULT_DEADLINE};
+use protocol::{unix_now_ns, Layer, PlanRequest, PlanResponse, ResponseSigner, WireFormat, DEFAULT_DEADLINE};
 use serde::Serialize;
 use stats::{LayerCounts, Percentiles};
 
@@ -51,6 +54,11 @@ pub struct ServiceConfig {
     pub rate_limit: Option<RateLimit>,
     /// Upper bound of every deadline (a request may ask for a shorter one).
     pub max_deadline: Duration,
+    /// A request older than its deadline plus this (by its `sent_at_ns` against this
+    /// host's clock) is answered as stale.
+    pub clock_skew_tolerance: Duration,
+    /// Signs every answer; `None`: answers are unsigned.
+    pub signer: Option<ResponseSigner>,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
     /// Records every decoded request and its answer (`planner serve --record`).
@@ -67,6 +75,8 @@ impl Default for ServiceConfig {
             // Off by default: simulations ask faster than real time (docs/service.md).
             rate_limit: None,
             max_deadline: DEFAULT_DEADLINE,
+            clock_skew_tolerance: protocol::DEFAULT_CLOCK_SKEW_TOLERANCE,
+            signer: None,
             inject_solve_delay: Duration::ZERO,
             recorder: None,
         }
@@ -85,6 +95,8 @@ struct JobState {
     request: PlanRequest,
     arrival: Instant,
     deadline: Instant,
+    /// The deadline as a duration (what staleness is measured against).
+    allowed: Duration,
     /// Taken by whoever answers first.
     reply: Mutex<Option<Reply>>,
     /// Set by the watchdog: the worker must stop and discard its result.
@@ -105,6 +117,7 @@ struct Counters {
     probes: u64,
     overloaded: u64,
     rate_limited: u64,
+    stale_in_queue: u64,
     late_discarded: u64,
 }
 
@@ -138,6 +151,9 @@ pub struct StatsSnapshot {
     /// Fallback answers given because the vehicle exceeded its rate limit (also counted in
     /// `watchdog_fallback`).
     pub rate_limited: u64,
+    /// Of the `stale_fallback` answers, those given when a worker took a request that had
+    /// become stale in the queue (the others: stale on arrival).
+    pub stale_in_queue: u64,
     /// Worker results that arrived after the watchdog had answered.
     pub late_discarded: u64,
     /// Arrival to answer.
@@ -183,6 +199,7 @@ impl Stats {
             probes: s.counters.probes,
             overloaded: s.counters.overloaded,
             rate_limited: s.counters.rate_limited,
+            stale_in_queue: s.counters.stale_in_queue,
             late_discarded: s.counters.late_discarded,
             latency: Percentiles::of_histogram(&s.latency),
             solve: Percentiles::of_histogram(&s.solve),
@@ -260,10 +277,11 @@ impl Service {
             let stats = Arc::clone(&stats);
             let ready = ready_tx.clone();
             let delay = config.inject_solve_delay;
+            let tolerance = config.clock_skew_tolerance;
             threads.push(
                 std::thread::Builder::new()
                     .name(format!("planner-worker-{i}"))
-                    .spawn(move || worker(&cfg, &rx, &stats, delay, &ready))?,
+                    .spawn(move || worker(&cfg, &rx, &stats, (delay, tolerance), &ready))?,
             );
         }
         drop(ready_tx);
@@ -309,8 +327,22 @@ impl Service {
             Err((rejected, (vehicle_id, sequence), e)) => {
                 tracing::debug!(error = %e, "undecodable request");
                 let response = PlanResponse::rejected(vehicle_id, sequence, rejected, micros(arrival.elapsed()));
-                self.answer_now(response, arrival, bytes.is_empty(), reply);
+                self.answer_now(response, arrival, bytes.is_empty(), self.signed(reply));
             }
+        }
+    }
+
+    /// `reply`, signing the response first when the service has a key.
+    fn signed(&self, reply: Reply) -> Reply {
+        match &self.config.signer {
+            Some(signer) => {
+                let signer = signer.clone();
+                Box::new(move |mut response| {
+                    signer.sign(&mut response);
+                    reply(response);
+                })
+            }
+            None => reply,
         }
     }
 
@@ -320,6 +352,8 @@ impl Service {
             Some(recorder) if !request.is_probe() => Box::new(recorder.wrap_reply(&request, arrival, reply)),
             _ => reply,
         };
+        // Signed before it is recorded: the recording holds what was sent.
+        let reply = self.signed(reply);
         // Wire-level checks the decoder does not make (enum ranges, ...); a probe fails them.
         if let Err(rejected) = request.validate() {
             let response = PlanResponse::rejected(
@@ -331,15 +365,29 @@ impl Service {
             self.answer_now(response, arrival, request.is_probe(), reply);
             return;
         }
-        let deadline = arrival + request.deadline().min(self.config.max_deadline);
+        let allowed = request.deadline().min(self.config.max_deadline);
         let job = Arc::new(JobState {
             request,
             arrival,
-            deadline,
+            deadline: arrival + allowed,
+            allowed,
             reply: Mutex::new(Some(reply)),
             abandoned: AtomicBool::new(false),
             solving: Mutex::new(None),
         });
+        // Before the rate limit and the queue: an old scene costs neither a solve nor a place.
+        if job
+            .request
+            .is_stale_at(unix_now_ns(), allowed, self.config.clock_skew_tolerance)
+        {
+            tracing::debug!(
+                vehicle = job.request.vehicle_id,
+                sequence = job.request.sequence,
+                "stale on arrival"
+            );
+            answer_fallback(&self.planner_config, &job, &self.stats, Layer::StaleFallback);
+            return;
+        }
         let vehicle = job.request.vehicle_id;
         if let Some(limiter) = &self.limiter {
             if !limiter
@@ -348,7 +396,7 @@ impl Service {
                 .allow(vehicle, arrival)
             {
                 self.stats.lock().counters.rate_limited += 1;
-                answer_fallback(&self.planner_config, &job, &self.stats);
+                answer_fallback(&self.planner_config, &job, &self.stats, Layer::WatchdogFallback);
                 return;
             }
         }
@@ -364,7 +412,7 @@ impl Service {
         } else {
             self.stats.lock().counters.overloaded += 1;
             job.abandoned.store(true, Ordering::SeqCst);
-            answer_fallback(&self.planner_config, &job, &self.stats);
+            answer_fallback(&self.planner_config, &job, &self.stats, Layer::WatchdogFallback);
         }
     }
 
@@ -394,23 +442,24 @@ impl Drop for Service {
     }
 }
 
-/// Answers `job` with the fallback marked `WatchdogFallback`, if nobody answered yet.
-fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats) -> bool {
+/// Answers `job` with the fallback marked `layer`, if nobody answered yet.
+fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats, layer: Layer) -> bool {
     let Some(reply) = job.take_reply() else {
         return false;
     };
-    let mut response = protocol::fallback_answer(config, &job.request);
+    let mut response = protocol::fallback_answer(config, &job.request, layer);
     response.queue_us = micros(job.arrival.elapsed());
     stats.record_answer(&response, job.arrival);
     reply(response);
     true
 }
 
+/// `(inject_delay, clock_skew_tolerance)`: see [`ServiceConfig`].
 fn worker(
     config: &PlannerConfig,
     queue: &WorkQueue,
     stats: &Stats,
-    inject_delay: Duration,
+    (inject_delay, tolerance): (Duration, Duration),
     ready: &mpsc::Sender<Result<(), String>>,
 ) {
     let mut planner = match Planner::new(config.clone()) {
@@ -427,6 +476,13 @@ fn worker(
     loop {
         let Some(job) = queue.next() else { return };
         if job.abandoned.load(Ordering::SeqCst) {
+            continue;
+        }
+        // The request may have become stale while it waited in the queue.
+        if job.request.is_stale_at(unix_now_ns(), job.allowed, tolerance) {
+            if answer_fallback(config, &job, stats, Layer::StaleFallback) {
+                stats.lock().counters.stale_in_queue += 1;
+            }
             continue;
         }
         let started = Instant::now();
@@ -503,7 +559,7 @@ fn watchdog(config: &PlannerConfig, jobs: &Receiver<Arc<JobState>>, stats: &Stat
                     _ => handle.interrupt(first_id),
                 }
             }
-            if answer_fallback(config, &job, stats) {
+            if answer_fallback(config, &job, stats, Layer::WatchdogFallback) {
                 tracing::debug!(
                     vehicle = job.request.vehicle_id,
                     sequence = job.request.sequence,
@@ -521,6 +577,7 @@ fn watchdog(config: &PlannerConfig, jobs: &Receiver<Arc<JobState>>, stats: &Stat
                 global_relaxation = s.by_layer.global_relaxation,
                 fallback = s.by_layer.fallback,
                 watchdog_fallback = s.by_layer.watchdog_fallback,
+                stale_fallback = s.by_layer.stale_fallback,
                 rejected = s.by_layer.rejected,
                 overloaded = s.overloaded,
                 p50_us = s.latency.p50_us,

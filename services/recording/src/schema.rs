@@ -99,12 +99,13 @@ pub fn plan_request() -> Value {
                 ("sequence", integer()),
                 ("timestamp_ns", integer()),
                 ("deadline_us", integer()),
+                ("sent_at_ns", integer()),
                 ("road", road),
                 ("ego", ego),
                 ("svs", array(sv)),
                 ("memory", memory()),
             ],
-            &["deadline_us", "memory"],
+            &["deadline_us", "sent_at_ns", "memory"],
         ),
     )
 }
@@ -121,7 +122,7 @@ pub fn plan_response() -> Value {
         ],
         &[],
     );
-    let layer = json!({ "type": "string", "enum": ["nominal", "global_relaxation", "fallback", "watchdog_fallback"] });
+    let layer = json!({ "type": "string", "enum": ["nominal", "global_relaxation", "fallback", "watchdog_fallback", "stale_fallback"] });
     let decided = object(
         &[
             ("action", action()),
@@ -159,8 +160,9 @@ pub fn plan_response() -> Value {
                 ("solve_us", integer()),
                 ("queue_us", integer()),
                 ("outcome", outcome),
+                ("signature", json!({ "type": "string" })),
             ],
-            &[],
+            &["signature"],
         ),
     )
 }
@@ -173,9 +175,10 @@ pub fn planner_stats() -> Value {
             ("global_relaxation", integer()),
             ("fallback", integer()),
             ("watchdog_fallback", integer()),
+            ("stale_fallback", integer()),
             ("rejected", integer()),
         ],
-        &[],
+        &["stale_fallback"],
     );
     let percentiles = object(
         &[

@@ -17,6 +17,10 @@ pub struct LayerCounts {
     pub fallback: u64,
     /// The planner's watchdog (deadline) or overload fallback.
     pub watchdog_fallback: u64,
+    /// The fallback for a request that arrived older than its deadline. Absent in documents
+    /// written before protocol version 3.
+    #[serde(default)]
+    pub stale_fallback: u64,
     /// Rejections (invalid request).
     pub rejected: u64,
 }
@@ -29,6 +33,7 @@ impl LayerCounts {
             Layer::GlobalRelaxation => self.global_relaxation += 1,
             Layer::Fallback => self.fallback += 1,
             Layer::WatchdogFallback => self.watchdog_fallback += 1,
+            Layer::StaleFallback => self.stale_fallback += 1,
         }
     }
 
@@ -49,12 +54,13 @@ impl LayerCounts {
         self.global_relaxation += other.global_relaxation;
         self.fallback += other.fallback;
         self.watchdog_fallback += other.watchdog_fallback;
+        self.stale_fallback += other.stale_fallback;
         self.rejected += other.rejected;
     }
 
     /// Decisions counted (rejections excluded).
     pub fn decisions(&self) -> u64 {
-        self.nominal + self.global_relaxation + self.fallback + self.watchdog_fallback
+        self.nominal + self.global_relaxation + self.fallback + self.watchdog_fallback + self.stale_fallback
     }
 
     /// Everything counted.
@@ -174,14 +180,23 @@ mod tests {
     #[test]
     fn counts_by_layer_and_rejections() {
         let mut c = LayerCounts::default();
-        for layer in [Layer::Nominal, Layer::Nominal, Layer::WatchdogFallback, Layer::Fallback] {
+        for layer in [
+            Layer::Nominal,
+            Layer::Nominal,
+            Layer::WatchdogFallback,
+            Layer::Fallback,
+            Layer::StaleFallback,
+        ] {
             c.add(layer);
         }
         let rejected = PlanResponse::rejected(1, 2, protocol::Rejected::default(), 0);
         c.add_response(&rejected);
         let mut d = c;
         d.merge(&c);
-        assert_eq!((c.nominal, c.fallback, c.watchdog_fallback, c.rejected), (2, 1, 1, 1));
-        assert_eq!((c.decisions(), c.total(), d.total()), (4, 5, 10));
+        assert_eq!(
+            (c.nominal, c.fallback, c.watchdog_fallback, c.stale_fallback, c.rejected),
+            (2, 1, 1, 1, 1)
+        );
+        assert_eq!((c.decisions(), c.total(), d.total()), (5, 6, 12));
     }
 }

@@ -44,6 +44,7 @@ impl PlanChannel for InProcessChannel {
             response: Some(response),
             answered_at: Some(Instant::now()),
             extra_responses: 0,
+            refused: Vec::new(),
         })
     }
 

@@ -6,6 +6,8 @@
 //!   [`inproc::InProcessChannel`] (a planner in this thread, the baseline of measurements).
 //! * [`iceoryx2`] also holds the planner's server loop; [`zenoh`] builds every Zenoh
 //!   configuration (the planner's, the vehicles', the tests').
+//! * With the planner's public key ([`protocol::ResponseVerifier`]) a channel refuses every
+//!   answer that does not verify ([`Answer::refused`]) and goes on waiting for the real one.
 //! * Channels wait at connect until the planner answers a readiness probe
 //!   ([`protocol::PlanRequest::probe`], the empty query over Zenoh), which the planner
 //!   does not count as a rejection.
@@ -16,7 +18,7 @@ pub mod zenoh;
 
 use std::time::{Duration, Instant};
 
-use protocol::{PlanRequest, PlanResponse};
+use protocol::{PlanRequest, PlanResponse, VerifyError};
 use thiserror::Error;
 
 /// Why a channel could not be opened or a request not be sent.
@@ -63,6 +65,9 @@ pub struct Answer {
     pub answered_at: Option<Instant>,
     /// Answers beyond the first (0 with a correct planner: one request, one answer).
     pub extra_responses: usize,
+    /// Answers refused because they did not verify with the planner's key (forged, altered
+    /// or unsigned), and why; never taken as the answer.
+    pub refused: Vec<VerifyError>,
 }
 
 /// A request/answer channel to a planner: one request at a time.

@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 use ::zenoh::bytes::Encoding;
 use ::zenoh::query::{ConsolidationMode, Querier};
 use ::zenoh::{Config, Session, Wait};
-use protocol::{PlanRequest, PlanResponse, WireFormat, ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY};
+use protocol::{
+    PlanRequest, PlanResponse, ResponseVerifier, WireFormat, ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY,
+};
 
 use crate::{await_ready, Answer, ChannelError, PlanChannel};
 
@@ -128,6 +130,9 @@ pub struct ZenohTarget {
     pub endpoint: Option<String>,
     /// A zenohd-style JSON5 file, e.g. `deploy/zenoh/client.json5`.
     pub config_file: Option<PathBuf>,
+    /// The planner's public key: answers that do not verify are refused (also the probe's,
+    /// so that only the real planner makes a channel ready). `None`: every answer is taken.
+    pub verifier: Option<ResponseVerifier>,
 }
 
 impl ZenohTarget {
@@ -148,10 +153,13 @@ impl ZenohTarget {
     }
 }
 
-/// Requests as Zenoh queries on [`ZENOH_PLAN_KEY`] (bincode payloads).
+/// Requests as Zenoh queries on [`ZENOH_PLAN_KEY`] (bincode payloads). Every reply is
+/// read (no consolidation): with a key, a forged reply that arrives first does not hide the
+/// planner's.
 pub struct ZenohChannel {
     session: Session,
     querier: Querier<'static>,
+    verifier: Option<ResponseVerifier>,
 }
 
 impl ZenohChannel {
@@ -186,13 +194,45 @@ impl ZenohChannel {
                 what: "declaring the querier".into(),
                 source,
             })?;
-        let channel = Self { session, querier };
-        await_ready(since, ready_timeout, Duration::from_millis(100), at, || {
-            Ok(!channel
-                .ask_raw(&[], WireFormat::Bincode, Duration::from_millis(500))
-                .is_empty())
+        let channel = Self {
+            session,
+            querier,
+            verifier: target.verifier.clone(),
+        };
+        // Say why when only refused answers came: a planner without the key is not absent.
+        let refused = std::cell::Cell::new(None);
+        let at_why = || match refused.get() {
+            Some(e) => format!("{} with a verified answer ({e})", at()),
+            None => at(),
+        };
+        await_ready(since, ready_timeout, Duration::from_millis(100), at_why, || {
+            let replies = channel.ask_raw(&[], WireFormat::Bincode, Duration::from_millis(500));
+            if channel.verifier.is_none() {
+                return Ok(!replies.is_empty());
+            }
+            let mut ready = false;
+            for (bytes, _) in &replies {
+                match channel.verified(bytes) {
+                    Ok(_) => ready = true,
+                    Err(Some(e)) => refused.set(Some(e)),
+                    Err(None) => {}
+                }
+            }
+            Ok(ready)
         })?;
         Ok(channel)
+    }
+
+    /// A reply decoded and, with a key, verified. `Err(None)`: it does not decode.
+    fn verified(&self, bytes: &[u8]) -> Result<PlanResponse, Option<protocol::VerifyError>> {
+        let response = protocol::decode_bincode::<PlanResponse>(bytes).map_err(|e| {
+            tracing::warn!("undecodable answer: {e}");
+            None
+        })?;
+        match &self.verifier {
+            Some(verifier) => verifier.verify(&response).map(|()| response).map_err(Some),
+            None => Ok(response),
+        }
     }
 
     /// Every reply payload to one query of `payload` in `format`, until every queryable has
@@ -231,13 +271,17 @@ impl PlanChannel for ZenohChannel {
         let mut answer = Answer::default();
         // Answers after the first are counted, not used.
         for (bytes, at) in self.ask_raw(&protocol::encode_bincode(&request), WireFormat::Bincode, wait) {
-            match protocol::decode_bincode::<PlanResponse>(&bytes) {
+            match self.verified(&bytes) {
                 Ok(response) if answer.response.is_none() => {
                     answer.response = Some(response);
                     answer.answered_at = Some(at);
                 }
                 Ok(_) => answer.extra_responses += 1,
-                Err(e) => tracing::warn!("undecodable answer: {e}"),
+                Err(Some(e)) => {
+                    tracing::warn!(sequence = request.sequence, "answer refused: {e}");
+                    answer.refused.push(e);
+                }
+                Err(None) => {}
             }
         }
         Ok(answer)

@@ -15,12 +15,15 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
     let mut flags = vec!["--transport".to_string(), transport.to_string()];
     match transport {
         Transport::InProcess => {}
-        Transport::Iceoryx2 { prefix, wait } => {
+        Transport::Iceoryx2 { prefix, wait, verifier } => {
             if let Some(p) = prefix {
                 flags.extend(["--iceoryx2-prefix".into(), p.clone()]);
             }
             if let WaitMode::BusyPoll { .. } = wait {
                 flags.push("--busy-poll".into());
+            }
+            if let Some(v) = verifier {
+                flags.extend(["--planner-public-key".into(), v.to_hex()]);
             }
         }
         Transport::Zenoh(target) => {
@@ -29,6 +32,9 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
             }
             if let Some(f) = &target.config_file {
                 flags.extend(["--zenoh-config".into(), f.display().to_string()]);
+            }
+            if let Some(v) = &target.verifier {
+                flags.extend(["--planner-public-key".into(), v.to_hex()]);
             }
         }
     }

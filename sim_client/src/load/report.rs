@@ -44,6 +44,10 @@ pub struct Counts {
     pub duplicated: u64,
     /// Answers whose vehicle id or sequence did not match the request.
     pub mismatched: u64,
+    /// Answers refused because they did not verify with the planner's key (`--planner-key`):
+    /// forged, altered or unsigned. Absent in reports written before signed answers.
+    #[serde(default)]
+    pub refused: u64,
 }
 
 impl Counts {
@@ -55,6 +59,7 @@ impl Counts {
         self.lost += o.lost;
         self.duplicated += o.duplicated;
         self.mismatched += o.mismatched;
+        self.refused += o.refused;
     }
 
     /// Requests not answered by their deadline (late or lost).
@@ -212,6 +217,7 @@ impl LoadReport {
             (c.late, "late (deadline misses)"),
             (c.duplicated, "duplicated"),
             (c.mismatched, "mismatched"),
+            (c.refused, "refused (signature)"),
         ] {
             if n > 0 {
                 v.push(format!("{n} answers {what}"));
@@ -239,12 +245,12 @@ impl LoadReport {
         let c = &self.counts;
         let l = &self.by_layer;
         let mut out = format!(
-            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}; {:.1} decisions/s in time\n",
-            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, self.throughput_per_s
+            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}, refused {}; {:.1} decisions/s in time\n",
+            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, c.refused, self.throughput_per_s
         );
         out += &format!(
-            "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, rejected {}\n",
-            l.nominal, l.global_relaxation, l.fallback, l.watchdog_fallback, l.rejected
+            "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, stale fallback {}, rejected {}\n",
+            l.nominal, l.global_relaxation, l.fallback, l.watchdog_fallback, l.stale_fallback, l.rejected
         );
         out += &format!(
             "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}\n",

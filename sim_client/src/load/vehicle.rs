@@ -63,6 +63,7 @@ impl VehicleStats {
         let c = &mut self.counts;
         c.sent += 1;
         c.duplicated += trip.answer.extra_responses as u64;
+        c.refused += trip.answer.refused.len() as u64;
         match kind {
             AnswerKind::InTime => c.in_time += 1,
             AnswerKind::Late => c.late += 1,

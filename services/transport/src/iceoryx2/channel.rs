@@ -19,16 +19,22 @@ impl Iceoryx2Channel {
         let since = Instant::now();
         let mut client = Client::connect(options)?;
         let probe = PlanRequest::probe(vehicle_id);
+        let refused = std::cell::Cell::new(None);
         await_ready(
             since,
             options.ready_timeout,
             Duration::from_millis(50),
-            || "over iceoryx2".to_owned(),
+            || match refused.get() {
+                // Say why: a planner that answers unsigned or with another key is not absent.
+                Some(e) => format!("over iceoryx2 with a verified answer ({e})"),
+                None => "over iceoryx2".to_owned(),
+            },
             || {
-                Ok(client
-                    .request(probe.clone(), Duration::from_millis(500))?
-                    .response
-                    .is_some())
+                let exchange = client.request(probe.clone(), Duration::from_millis(500))?;
+                if let Some(&e) = exchange.refused.last() {
+                    refused.set(Some(e));
+                }
+                Ok(exchange.response.is_some())
             },
         )?;
         Ok(Self { client })
@@ -42,6 +48,7 @@ impl PlanChannel for Iceoryx2Channel {
             answered_at: exchange.response.as_ref().map(|_| Instant::now()),
             response: exchange.response,
             extra_responses: exchange.extra_responses,
+            refused: exchange.refused,
         })
     }
 

@@ -8,8 +8,8 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{event, request_response};
 use protocol::{
-    PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
-    ICEORYX2_PLAN_SERVICE,
+    PlanRequest, PlanResponse, ResponseVerifier, VerifyError, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE,
+    ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE, ICEORYX2_PLAN_SERVICE,
 };
 
 use super::{node, receive, send, service_name, setup, Ipc, TransportError, WaitMode};
@@ -25,6 +25,9 @@ pub struct ClientOptions {
     pub node_name: String,
     /// How the client waits for its answer.
     pub wait: WaitMode,
+    /// The planner's public key: answers that do not verify are refused. `None`: every
+    /// answer is taken, signed or not.
+    pub verifier: Option<ResponseVerifier>,
 }
 
 impl Default for ClientOptions {
@@ -34,6 +37,7 @@ impl Default for ClientOptions {
             ready_timeout: Duration::from_secs(30),
             node_name: format!("hmdp-vehicle-{}", std::process::id()),
             wait: WaitMode::Event,
+            verifier: None,
         }
     }
 }
@@ -52,6 +56,8 @@ pub struct Exchange {
     /// Planners connected when the request was sent (0: nobody serves, the request went
     /// nowhere and the call returned at once).
     pub servers: usize,
+    /// Answers refused because they did not verify with the configured key, and why.
+    pub refused: Vec<VerifyError>,
 }
 
 /// A vehicle's connection to the planner over iceoryx2. Not for sharing between threads:
@@ -65,6 +71,7 @@ pub struct Client {
     _event_services: [event::PortFactory<Ipc>; 2],
     _node: Node<Ipc>,
     wait: WaitMode,
+    verifier: Option<ResponseVerifier>,
 }
 
 impl Client {
@@ -121,12 +128,14 @@ impl Client {
             _event_services: [requests_event, responses_event],
             _node: node,
             wait: options.wait,
+            verifier: options.verifier.clone(),
         })
     }
 
     /// Sends `request` (written straight into shared memory) and waits up to `wait` for the
     /// answer. A late answer to an earlier request is never taken for this one, nor an answer
-    /// whose vehicle id and sequence are not the request's (counted in `mismatched`).
+    /// whose vehicle id and sequence are not the request's (counted in `mismatched`), nor,
+    /// with a key, one that does not verify (in `refused`).
     pub fn request(&mut self, request: PlanRequest, wait: Duration) -> Result<Exchange, TransportError> {
         let deadline = Instant::now() + wait;
         let expected = (request.vehicle_id, request.sequence);
@@ -138,6 +147,7 @@ impl Client {
             extra_responses: 0,
             mismatched: 0,
             servers,
+            refused: Vec::new(),
         };
         if servers == 0 {
             return Ok(exchange);
@@ -158,6 +168,9 @@ impl Client {
                         "an answer for another request: ignored"
                     );
                     exchange.mismatched += 1;
+                } else if let Some(Err(e)) = self.verifier.as_ref().map(|v| v.verify(&response)) {
+                    tracing::warn!(sequence = response.sequence, "answer refused: {e}");
+                    exchange.refused.push(e);
                 } else if exchange.response.is_none() {
                     exchange.response = Some(response);
                 } else {
