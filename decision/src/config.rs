@@ -392,6 +392,10 @@ pub struct SolverSettings {
     pub time_limit_s: f64,
     /// Offer HiGHS the best of the shifted previous plan and "keep everything" as incumbent.
     pub warm_start: bool,
+    /// Solve each layer's LP relaxation first and skip the MIP run when it settles the
+    /// layer (infeasible, bound reaching the incumbent, or an optimal integral / rounded
+    /// plan). Exact either way; it saves HiGHS's per-MIP setup on most decisions.
+    pub relaxation_first: bool,
     /// Tolerance when checking a plan against the exact constraints, m.
     pub feasibility_tolerance: f64,
     /// Further HiGHS options by name (`[solver.highs_options]`, e.g. `mip_detect_symmetry =
@@ -429,6 +433,7 @@ impl Default for SolverSettings {
             backend: Backend::Milp,
             time_limit_s: 0.3,
             warm_start: true,
+            relaxation_first: true,
             feasibility_tolerance: 1e-6,
             highs_options: std::collections::BTreeMap::new(),
         }

@@ -29,6 +29,14 @@ pub struct MipModel {
 }
 
 impl MipModel {
+    /// Whether every integer column of `values` is within `tolerance` of an integer.
+    pub fn is_integral(&self, values: &[f64], tolerance: f64) -> bool {
+        self.integer
+            .iter()
+            .zip(values)
+            .all(|(&integer, &v)| !integer || (v - v.round()).abs() <= tolerance)
+    }
+
     pub fn add_col(&mut self, cost: f64, lower: f64, upper: f64, integer: bool) -> usize {
         self.col_cost.push(cost);
         self.col_lower.push(lower);
@@ -91,6 +99,28 @@ pub struct MipResult {
     /// Column values, when HiGHS has a feasible point.
     pub columns: Option<Vec<f64>>,
     pub nodes: u64,
+}
+
+impl MipResult {
+    /// No solution exists (below the cutoff), known without a MIP run.
+    pub fn nothing_found() -> Self {
+        Self {
+            status: MipStatus::Infeasible,
+            objective: f64::INFINITY,
+            columns: None,
+            nodes: 0,
+        }
+    }
+
+    /// An optimum of value `objective`, proven at the root without a MIP run.
+    pub fn optimal_at_root(objective: f64) -> Self {
+        Self {
+            status: MipStatus::Optimal,
+            objective,
+            columns: None,
+            nodes: 0,
+        }
+    }
 }
 
 /// Shared between a solver and the threads that may interrupt it.
@@ -284,6 +314,17 @@ impl HighsSolver {
     /// be the obvious tool, but with HiGHS 1.16 a MIP solved from a user solution can report
     /// the improved objective while `Highs_getSolution` still returns the user's point.
     pub fn solve(&mut self, model: &MipModel, cutoff: Option<f64>) -> Result<MipResult, SolverError> {
+        self.solve_as(model, cutoff, false)
+    }
+
+    /// Solve the LP relaxation of `model` (every column continuous). HiGHS's LP clock runs on
+    /// across the runs of one instance, so an instance used for this needs no finite time
+    /// limit (an LP of these sizes ends in microseconds).
+    pub fn solve_relaxation(&mut self, model: &MipModel) -> Result<MipResult, SolverError> {
+        self.solve_as(model, None, true)
+    }
+
+    fn solve_as(&mut self, model: &MipModel, cutoff: Option<f64>, relax: bool) -> Result<MipResult, SolverError> {
         self.set_double("objective_bound", cutoff.unwrap_or(f64::INFINITY))?;
         let num_col = model.num_cols() as c_int;
         let num_row = model.num_rows() as c_int;
@@ -291,7 +332,7 @@ impl HighsSolver {
             .integer
             .iter()
             .map(|&i| {
-                if i {
+                if i && !relax {
                     ffi::kHighsVarTypeInteger
                 } else {
                     ffi::kHighsVarTypeContinuous

@@ -6,7 +6,8 @@
 //!   input `u[s]` and the auxiliaries of the speed and comfort terms;
 //! - [`Builder::action_rows`]: at most one change per step (one per direction with combined
 //!   actions);
-//! - [`Builder::transition_rows`]: one-hots linked to the previous step by the actions, so
+//! - [`Builder::transition_rows`]: one-hots linked to the previous step by transition flows
+//!   whose up / down parts are the actions (a network flow: its LP relaxation is tight), so
 //!   `clip` is implicit (values outside the one-hots do not exist);
 //! - [`Builder::input_rows`]: `u[s]` inside the range of the state it is in;
 //! - [`Builder::speed_rows`]: `0 <= v[s] <= v_cap`, `dev[s] >= |v_des - v[s]|`, and the braking
@@ -17,11 +18,12 @@
 //!   slack, and Layer A's global slack;
 //! - [`Builder::occupancy_rows`]: `o[s][l] >= z[j][l]` for `j <= s`: a lane stays occupied
 //!   once targeted because a lane change outlasts the horizon.
+//!
+//! [`MilpBackend`] solves a layer's LP relaxation first and runs the MIP only when the
+//! relaxation does not settle it (`backend.rs`).
 
-use crate::config::SolverSettings;
-use crate::error::SolverError;
-use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
-use crate::highs_solver::{HighsSolver, InterruptHandle, MipModel, MipStatus};
+use crate::evaluate::Mode;
+use crate::highs_solver::MipModel;
 use crate::problem::{Problem, SvConstraint};
 use crate::types::Action;
 
@@ -59,6 +61,32 @@ impl Expr {
     }
 }
 
+/// An entry of a one-hot: a column, or a value known before the solve.
+#[derive(Debug, Clone, Copy)]
+enum OneHot {
+    Column(usize),
+    Fixed(bool),
+}
+
+/// Which one-hot chain a transition flow belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Chain {
+    Lane,
+    Beta,
+}
+
+/// A transition flow column: one-hot entry `from` at step `step - 1` to `to` at `step`
+/// (indices into the lane or beta one-hot).
+#[derive(Debug, Clone, Copy)]
+#[cfg_attr(not(test), allow(dead_code))] // read by the tests that map plans to columns
+struct Flow {
+    chain: Chain,
+    step: usize,
+    from: usize,
+    to: usize,
+    col: usize,
+}
+
 /// Column indices of one built model.
 #[derive(Debug, Clone, Default)]
 struct Columns {
@@ -68,6 +96,8 @@ struct Columns {
     lane: Vec<Vec<usize>>,
     /// Beta one-hot per step, index `beta + 1`.
     beta: Vec<[usize; 3]>,
+    /// Transition flows of both chains.
+    flows: Vec<Flow>,
     /// Kinematic input per step.
     accel: Vec<usize>,
     speed_dev: Vec<usize>,
@@ -79,21 +109,6 @@ struct Columns {
     /// Hysteresis and global slack per `[sv * H + s]`.
     hys: Vec<Option<usize>>,
     glob: Vec<Option<usize>>,
-}
-
-/// Outcome of one layer's solve.
-#[derive(Debug, Clone)]
-pub struct LayerOutcome {
-    /// The plan, re-scored exactly; `None` when the layer is infeasible or gave no plan.
-    pub evaluation: Option<Evaluation>,
-    pub solver_objective: Option<f64>,
-    pub rows: usize,
-    pub columns: usize,
-    pub binaries: usize,
-    pub nodes: u64,
-    pub warm_start: bool,
-    /// The solve stopped at its time limit or an interrupt.
-    pub stopped: bool,
 }
 
 /// The layer is infeasible before any solve.
@@ -199,36 +214,72 @@ impl<'p> Builder<'p> {
         }
     }
 
-    /// `sum_l l z[s][l] = sum_l l z[s-1][l] + L+ - L-` (lane `alpha_0` at `s = 0`), and
-    /// `b[s][+1] - b[s][-1] = ... + G+ - G-` for beta.
+    /// The lane and beta one-hots follow their previous step through transition flows
+    /// `x[s][i -> j]` (`|i - j| <= 1`): `sum_j x[i -> j]` is the previous one-hot's `i`,
+    /// `sum_i x[i -> j]` this step's `j`, and the up / down flows are the actions `L+`, `L-`
+    /// (`G+`, `G-`). A one-hot chain written this way is a network flow, whose LP relaxation
+    /// is integral; the shorter link `sum_j j z[s][j] = sum_j j z[s-1][j] + L+ - L-` lets the
+    /// relaxation reach a lane (or a beta) it could not by mixing its neighbours at no action
+    /// cost, and left most MIPs to branching.
     fn transition_rows(&mut self) {
         let p = self.problem;
         for s in 0..p.horizon {
-            let (act, lane, beta) = (self.cols.act[s], self.cols.lane[s].clone(), self.cols.beta[s]);
-            self.equal(Expr::sum(lane.iter().copied()), 1.0);
-            let mut lane_link = Expr::default().term(act[1], -1.0).term(act[0], 1.0);
-            for (l, &c) in lane.iter().enumerate() {
-                lane_link = lane_link.term(c, (l + 1) as f64);
-            }
-            let mut beta_link = Expr::default()
-                .term(beta[2], 1.0)
-                .term(beta[0], -1.0)
-                .term(act[3], -1.0)
-                .term(act[2], 1.0);
-            if s == 0 {
-                lane_link.constant -= f64::from(p.ego.maneuver.lane);
-                beta_link.constant -= f64::from(p.ego.maneuver.beta);
-            } else {
-                for (l, &c) in self.cols.lane[s - 1].iter().enumerate() {
-                    lane_link = lane_link.term(c, -((l + 1) as f64));
-                }
-                let prev = self.cols.beta[s - 1];
-                beta_link = beta_link.term(prev[2], -1.0).term(prev[0], 1.0);
-            }
-            self.equal(lane_link, 0.0);
-            self.equal(Expr::sum(beta), 1.0);
-            self.equal(beta_link, 0.0);
+            let act = self.cols.act[s];
+            let (lane_now, lane_prev) = (self.cols.lane[s].clone(), self.previous_one_hot(s, true));
+            self.flow_rows(Chain::Lane, s, &lane_prev, &lane_now, act[0], act[1]);
+            let (beta_now, beta_prev) = (self.cols.beta[s].to_vec(), self.previous_one_hot(s, false));
+            self.flow_rows(Chain::Beta, s, &beta_prev, &beta_now, act[2], act[3]);
         }
+    }
+
+    /// The previous step's lane (or beta) one-hot: columns, or the ego's state at `s = 0`.
+    fn previous_one_hot(&self, s: usize, lane: bool) -> Vec<OneHot> {
+        let p = self.problem;
+        match (s, lane) {
+            (0, true) => (1..=p.lanes).map(|l| OneHot::Fixed(l == p.ego.maneuver.lane)).collect(),
+            (0, false) => (-1..=1).map(|b| OneHot::Fixed(b == p.ego.maneuver.beta)).collect(),
+            (_, true) => self.cols.lane[s - 1].iter().map(|&c| OneHot::Column(c)).collect(),
+            (_, false) => self.cols.beta[s - 1].iter().map(|&c| OneHot::Column(c)).collect(),
+        }
+    }
+
+    /// Flow rows from `prev` to `now` with the down / up flows equal to the action columns.
+    fn flow_rows(&mut self, chain: Chain, step: usize, prev: &[OneHot], now: &[usize], down: usize, up: usize) {
+        let n = now.len();
+        let mut into: Vec<Expr> = now.iter().map(|&c| Expr::default().term(c, -1.0)).collect();
+        let (mut down_flow, mut up_flow) = (Expr::default().term(down, -1.0), Expr::default().term(up, -1.0));
+        for (i, from) in prev.iter().enumerate() {
+            if matches!(from, OneHot::Fixed(false)) {
+                continue; // no flow leaves a state the ego is not in
+            }
+            let mut out = Expr::default();
+            for j in i.saturating_sub(1)..(i + 2).min(n) {
+                let x = self.m.add_col(0.0, 0.0, 1.0, false);
+                self.cols.flows.push(Flow {
+                    chain,
+                    step,
+                    from: i,
+                    to: j,
+                    col: x,
+                });
+                out = out.term(x, 1.0);
+                into[j] = std::mem::take(&mut into[j]).term(x, 1.0);
+                if j < i {
+                    down_flow = down_flow.term(x, 1.0);
+                } else if j > i {
+                    up_flow = up_flow.term(x, 1.0);
+                }
+            }
+            match *from {
+                OneHot::Column(c) => self.equal(out.term(c, -1.0), 0.0),
+                _ => self.equal(out, 1.0),
+            }
+        }
+        for row in into {
+            self.equal(row, 0.0);
+        }
+        self.equal(down_flow, 0.0);
+        self.equal(up_flow, 0.0);
     }
 
     /// `sum_j lo(j) b[s][j] <= u[s] <= sum_j hi(j) b[s][j]`.
@@ -421,50 +472,6 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Columns), Infeasibl
     Ok((b.m, b.cols))
 }
 
-/// Column vector of a sequence already evaluated feasible (to check the model against the
-/// oracle).
-#[cfg(test)]
-fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize) -> Vec<f64> {
-    let mut x = vec![0.0; num_cols];
-    let r = &e.rollout;
-    for s in 0..problem.horizon {
-        let a = r.actions[s];
-        match a.lateral {
-            -1 => x[cols.act[s][0]] = 1.0,
-            1 => x[cols.act[s][1]] = 1.0,
-            _ => {}
-        }
-        match a.longitudinal {
-            -1 => x[cols.act[s][2]] = 1.0,
-            1 => x[cols.act[s][3]] = 1.0,
-            _ => {}
-        }
-        x[cols.lane[s][(r.maneuvers[s].lane - 1) as usize]] = 1.0;
-        x[cols.beta[s][(r.maneuvers[s].beta + 1) as usize]] = 1.0;
-        x[cols.accel[s]] = r.accel[s];
-        x[cols.speed_dev[s]] = (problem.desired_speed - r.v[s]).abs();
-        x[cols.brake[s]] = (-r.accel[s]).max(0.0);
-        x[cols.hard_brake[s]] = (problem.comfort_decel - r.accel[s]).max(0.0);
-        x[cols.firm_brake[s]] = (problem.firm_decel - r.accel[s]).max(0.0);
-        for (l, o) in cols.occ[s].iter().enumerate() {
-            if let Some(o) = *o {
-                x[o] = f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8)));
-            }
-        }
-    }
-    for (idx, col) in cols.hys.iter().enumerate() {
-        if let Some(col) = *col {
-            x[col] = e.hysteresis_slack[idx];
-        }
-    }
-    for (idx, col) in cols.glob.iter().enumerate() {
-        if let Some(col) = *col {
-            x[col] = e.global_slack[idx];
-        }
-    }
-    x
-}
-
 /// The actions and accelerations of a solution.
 fn decode(problem: &Problem, cols: &Columns, values: &[f64]) -> (Vec<Action>, Vec<f64>) {
     let on = |c: usize| values[c] > 0.5;
@@ -490,91 +497,8 @@ fn decode(problem: &Problem, cols: &Columns, values: &[f64]) -> (Vec<Action>, Ve
     (actions, accel)
 }
 
-/// The MILP backend: one long-lived HiGHS instance.
-pub struct MilpBackend {
-    solver: HighsSolver,
-}
-
-impl MilpBackend {
-    /// A backend with the settings' time limit and extra HiGHS options.
-    pub fn new(settings: &SolverSettings) -> Result<Self, SolverError> {
-        let mut solver = HighsSolver::new(settings.time_limit_s)?;
-        for (name, value) in &settings.highs_options {
-            solver.set_option(name, &value.to_string())?;
-        }
-        Ok(Self { solver })
-    }
-
-    pub fn interrupt_handle(&self) -> InterruptHandle {
-        self.solver.interrupt_handle()
-    }
-
-    pub fn next_solve_id(&self) -> u64 {
-        self.solver.next_solve_id()
-    }
-
-    pub fn set_time_limit(&mut self, seconds: f64) -> Result<(), SolverError> {
-        self.solver.set_time_limit(seconds)
-    }
-
-    /// Solve one layer. `warm` are candidate sequences; the best feasible one is the
-    /// incumbent whose cost cuts off the search.
-    pub fn solve(&mut self, problem: &Problem, mode: Mode, warm: &[Vec<Action>]) -> Result<LayerOutcome, SolverError> {
-        let Ok((model, cols)) = build(problem, mode) else {
-            return Ok(LayerOutcome {
-                evaluation: None,
-                solver_objective: None,
-                rows: 0,
-                columns: 0,
-                binaries: 0,
-                nodes: 0,
-                warm_start: false,
-                stopped: false,
-            });
-        };
-        // The best warm candidate bounds the search; if nothing beats it, it is the answer.
-        let incumbent_offered = !warm.is_empty();
-        let incumbent = warm
-            .iter()
-            .filter_map(|actions| evaluate(problem, actions, mode))
-            .min_by(|a, b| a.cost.total_cmp(&b.cost));
-        // HiGHS prunes with the cutoff (`objective_bound`). With the continuous input it was
-        // seen to declare "nothing below the cutoff" on a model whose optimum lies well below
-        // it (4.88 under a cutoff of 14.10), so there the incumbent only competes afterwards.
-        // It is scored even when HiGHS proves optimality: near-ties between sequences are
-        // decided by the exact score, and skipping it (6 % of the solve time) turned Case 1's
-        // lane change behind SV3 into following SV2 to the end.
-        let cutoff = incumbent
-            .as_ref()
-            .filter(|_| !problem.kin.is_continuous())
-            .map(|e| e.cost + 1e-6 + 1e-9 * e.cost.abs());
-        let result = self.solver.solve(&model, cutoff)?;
-        let stopped = result.status == MipStatus::Stopped;
-        let usable = matches!(result.status, MipStatus::Optimal | MipStatus::Stopped);
-        let found = match (&result.columns, usable) {
-            (Some(values), true) => {
-                let (actions, accel) = decode(problem, &cols, values);
-                evaluate_at(problem, &actions, &accel, mode)
-            }
-            _ => None,
-        };
-        let solver_objective = found.as_ref().map(|_| result.objective);
-        let evaluation = match (found, incumbent) {
-            (Some(f), Some(i)) => Some(if i.cost < f.cost { i } else { f }),
-            (found, incumbent) => found.or(incumbent),
-        };
-        Ok(LayerOutcome {
-            solver_objective,
-            evaluation,
-            rows: model.num_rows(),
-            columns: model.num_cols(),
-            binaries: model.num_integers(),
-            nodes: result.nodes,
-            warm_start: cutoff.is_some() || incumbent_offered,
-            stopped,
-        })
-    }
-}
+mod backend;
+pub use backend::{LayerOutcome, MilpBackend};
 
 #[cfg(test)]
 #[path = "milp_tests.rs"]

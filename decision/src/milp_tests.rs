@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::corpus::{paper_classes, SituationGenerator};
+use crate::evaluate::{evaluate, Evaluation};
 use crate::model::admissible_sequences;
 use crate::problem::prepare;
 use crate::PlannerConfig;
@@ -92,4 +93,100 @@ fn the_same_holds_for_the_discrete_maps() {
     config.idm.speed_dependent = false;
     let checked = oracle_points_are_milp_feasible(&config);
     assert!(checked > 500, "{checked}");
+}
+
+/// Column vector of a sequence already evaluated feasible (to check the model against the
+/// oracle).
+fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize) -> Vec<f64> {
+    let mut x = vec![0.0; num_cols];
+    let r = &e.rollout;
+    for s in 0..problem.horizon {
+        let a = r.actions[s];
+        match a.lateral {
+            -1 => x[cols.act[s][0]] = 1.0,
+            1 => x[cols.act[s][1]] = 1.0,
+            _ => {}
+        }
+        match a.longitudinal {
+            -1 => x[cols.act[s][2]] = 1.0,
+            1 => x[cols.act[s][3]] = 1.0,
+            _ => {}
+        }
+        x[cols.lane[s][(r.maneuvers[s].lane - 1) as usize]] = 1.0;
+        x[cols.beta[s][(r.maneuvers[s].beta + 1) as usize]] = 1.0;
+        x[cols.accel[s]] = r.accel[s];
+        x[cols.speed_dev[s]] = (problem.desired_speed - r.v[s]).abs();
+        x[cols.brake[s]] = (-r.accel[s]).max(0.0);
+        x[cols.hard_brake[s]] = (problem.comfort_decel - r.accel[s]).max(0.0);
+        x[cols.firm_brake[s]] = (problem.firm_decel - r.accel[s]).max(0.0);
+        for (l, o) in cols.occ[s].iter().enumerate() {
+            if let Some(o) = *o {
+                x[o] = f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8)));
+            }
+        }
+    }
+    let state = |chain: Chain, s: Option<usize>| {
+        let m = s.map_or(problem.ego.maneuver, |s| r.maneuvers[s]);
+        match chain {
+            Chain::Lane => (m.lane - 1) as usize,
+            Chain::Beta => (m.beta + 1) as usize,
+        }
+    };
+    for f in &cols.flows {
+        let (from, to) = (state(f.chain, f.step.checked_sub(1)), state(f.chain, Some(f.step)));
+        x[f.col] = f64::from(u8::from(from == f.from && to == f.to));
+    }
+    for (idx, col) in cols.hys.iter().enumerate() {
+        if let Some(col) = *col {
+            x[col] = e.hysteresis_slack[idx];
+        }
+    }
+    for (idx, col) in cols.glob.iter().enumerate() {
+        if let Some(col) = *col {
+            x[col] = e.global_slack[idx];
+        }
+    }
+    x
+}
+
+/// Settling a layer by its LP relaxation is exact: on the corpus, every layer gets the same
+/// optimal cost with and without it, and the relaxation does settle some of them (and
+/// leaves some to the MIP), so both paths are exercised.
+#[test]
+fn the_relaxation_first_gives_the_mips_optimum() {
+    for continuous in [true, false] {
+        let mut config = PlannerConfig::default();
+        config.ego.continuous_accel = continuous;
+        let mut direct_settings = config.solver.clone();
+        direct_settings.relaxation_first = false;
+        let mut first = MilpBackend::new(&config.solver).unwrap();
+        let mut direct = MilpBackend::new(&direct_settings).unwrap();
+        let (mut settled, mut open) = (0, 0);
+        for class in paper_classes() {
+            let mut generator = SituationGenerator::new(7 + u64::from(class.id));
+            for _ in 0..6 {
+                let s = generator.situation(&config, &class);
+                let problem = prepare(&config, &s).problem;
+                let keep = vec![vec![Action::KEEP; problem.horizon]];
+                for mode in [Mode::Nominal, Mode::Relaxed] {
+                    let a = first.solve(&problem, mode, &keep).unwrap();
+                    let b = direct.solve(&problem, mode, &keep).unwrap();
+                    let cost = |o: &LayerOutcome| o.evaluation.as_ref().map(|e| e.cost);
+                    match (cost(&a), cost(&b)) {
+                        (Some(x), Some(y)) => assert!((x - y).abs() <= 1e-6 * (1.0 + y.abs()), "{x} vs {y}: {s:?}"),
+                        (x, y) => assert_eq!(x, y, "{s:?}"),
+                    }
+                    if a.settled_at_root {
+                        settled += 1;
+                    } else {
+                        open += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            settled > 0 && open > 0,
+            "continuous {continuous}: settled {settled}, open {open}"
+        );
+    }
 }

@@ -90,7 +90,6 @@ pub fn predict_branches_from(
     occupancy0: LaneSet,
 ) -> Vec<Branch> {
     let horizon = config.timing.horizon;
-    let mut leaves = Vec::new();
     let mut current = Branch {
         probability: 1.0,
         actions: Vec::with_capacity(horizon),
@@ -99,6 +98,11 @@ pub fn predict_branches_from(
         v: Vec::with_capacity(horizon),
         occupancy: Vec::with_capacity(horizon),
     };
+    /// Depth-first over the HMDP's action sequences, skipping every partial sequence whose
+    /// probability is already below the threshold (a branch's probability only falls as it
+    /// grows). With `leaves`, every leaf at or above `search.floor` is collected in action-set
+    /// order; without, `search.floor` rises to the most probable leaf seen, so the search
+    /// ends holding the most probable leaf's probability.
     #[allow(clippy::too_many_arguments)]
     fn grow(
         config: &PlannerConfig,
@@ -111,13 +115,19 @@ pub fn predict_branches_from(
         kept_accel: Option<f64>,
         left: usize,
         current: &mut Branch,
-        leaves: &mut Vec<Branch>,
+        search: &mut Search,
     ) {
         if left == 0 {
-            leaves.push(current.clone());
+            match &mut search.leaves {
+                Some(leaves) => leaves.push(current.clone()),
+                None => search.floor = search.floor.max(current.probability),
+            }
             return;
         }
         for (d, next, p) in action_probabilities(config, m, lanes) {
+            if current.probability * p < search.floor {
+                continue;
+            }
             // The measured acceleration holds until the branch changes the longitudinal state.
             let kept = kept_accel.filter(|_| d.longitudinal == 0);
             let (x1, v1) = match kept {
@@ -137,7 +147,7 @@ pub fn predict_branches_from(
             current.x.push(x1);
             current.v.push(v1);
             current.occupancy.push(occ1);
-            grow(config, kin, lanes, next, x1, v1, occ1, kept, left - 1, current, leaves);
+            grow(config, kin, lanes, next, x1, v1, occ1, kept, left - 1, current, search);
             current.probability = saved;
             current.actions.pop();
             current.maneuvers.pop();
@@ -146,19 +156,35 @@ pub fn predict_branches_from(
             current.occupancy.pop();
         }
     }
-    grow(
-        config,
-        kin,
-        lanes,
-        start,
-        x0,
-        v0,
-        occupancy0,
-        a0,
-        horizon,
-        &mut current,
-        &mut leaves,
-    );
+    // First the most probable leaf's probability, then every leaf that can be kept: at least
+    // `p_min`, or the most probable one. Pruning keeps the enumeration's order, so the
+    // result is the full tree's, without its `5^H` leaves per SV.
+    let mut run = |search: &mut Search| {
+        grow(
+            config,
+            kin,
+            lanes,
+            start,
+            x0,
+            v0,
+            occupancy0,
+            a0,
+            horizon,
+            &mut current,
+            search,
+        )
+    };
+    let mut most_probable = Search {
+        floor: 0.0,
+        leaves: None,
+    };
+    run(&mut most_probable);
+    let mut keepable = Search {
+        floor: most_probable.floor.min(config.prediction.p_min),
+        leaves: Some(Vec::new()),
+    };
+    run(&mut keepable);
+    let mut leaves = keepable.leaves.unwrap_or_default();
     // Stable sort keeps action-set order among equal probabilities.
     leaves.sort_by(|a, b| b.probability.total_cmp(&a.probability));
     let p_min = config.prediction.p_min;
@@ -174,6 +200,14 @@ pub fn predict_branches_from(
         b.probability /= total;
     }
     kept
+}
+
+/// State of one pruned search of [`predict_branches_from`].
+struct Search {
+    /// Partial sequences below this probability are not followed.
+    floor: f64,
+    /// Where leaves are collected; `None` while searching for the most probable leaf.
+    leaves: Option<Vec<Branch>>,
 }
 
 /// One step at constant acceleration `a`, or to a standstill within the step.
@@ -387,5 +421,106 @@ mod tests {
             LaneSet::single(1),
         );
         assert!(b.iter().all(|br| br.v.iter().all(|&v| v >= 0.0)));
+    }
+
+    /// The unpruned tree, sorted, filtered and renormalised: the definition the pruned
+    /// search must reproduce exactly.
+    fn full_tree(
+        c: &PlannerConfig,
+        k: &Kinematics,
+        lanes: u8,
+        start: Maneuver,
+        s0: (f64, f64, Option<f64>),
+    ) -> Vec<Branch> {
+        let mut leaves = Vec::new();
+        let mut stack = vec![(
+            Branch {
+                probability: 1.0,
+                actions: vec![],
+                maneuvers: vec![],
+                x: vec![],
+                v: vec![],
+                occupancy: vec![],
+            },
+            start,
+            s0.0,
+            s0.1,
+            s0.2,
+            LaneSet::single(start.lane),
+        )];
+        // Depth-first in action-set order: push children in reverse.
+        while let Some((b, m, x, v, a, occ)) = stack.pop() {
+            if b.actions.len() == c.timing.horizon {
+                leaves.push(b);
+                continue;
+            }
+            let mut children = Vec::new();
+            for (d, next, p) in action_probabilities(c, m, lanes) {
+                let kept = a.filter(|_| d.longitudinal == 0);
+                let (x1, v1) = match kept {
+                    Some(a) => step_to_standstill(k.dt, x, v, a),
+                    None => k.step(x, v, next.beta),
+                };
+                if v1 < 0.0 {
+                    continue;
+                }
+                let mut child = b.clone();
+                child.probability *= p;
+                child.actions.push(d);
+                child.maneuvers.push(next);
+                child.x.push(x1);
+                child.v.push(v1);
+                child.occupancy.push(occ.with(next.lane));
+                children.push((child, next, x1, v1, kept, occ.with(next.lane)));
+            }
+            stack.extend(children.into_iter().rev());
+        }
+        leaves.sort_by(|a, b| b.probability.total_cmp(&a.probability));
+        let mut kept: Vec<Branch> = leaves
+            .into_iter()
+            .enumerate()
+            .filter(|(i, b)| *i == 0 || b.probability >= c.prediction.p_min)
+            .map(|(_, b)| b)
+            .take(c.prediction.max_branches)
+            .collect();
+        let total: f64 = kept.iter().map(|b| b.probability).sum();
+        for b in &mut kept {
+            b.probability /= total;
+        }
+        kept
+    }
+
+    #[test]
+    fn the_pruned_search_keeps_exactly_the_full_trees_branches() {
+        let k = kin();
+        let mut compared = 0;
+        for horizon in 1..=5 {
+            for p_min in [0.0, 0.05, 0.15, 0.6] {
+                for max_branches in [1, 4, 9] {
+                    let mut c = PlannerConfig::default();
+                    c.timing.horizon = horizon;
+                    c.prediction.p_min = p_min;
+                    c.prediction.max_branches = max_branches;
+                    for lanes in 1..=3u8 {
+                        for lane in 1..=lanes {
+                            for beta in -1..=1 {
+                                for s0 in [(0.0, 20.0, None), (5.0, 0.5, Some(-1.0)), (0.0, 12.0, Some(0.4))] {
+                                    let start = Maneuver { lane, beta };
+                                    let occ = LaneSet::single(lane);
+                                    let pruned = predict_branches_from(&c, &k, lanes, start, s0, occ);
+                                    assert_eq!(
+                                        pruned,
+                                        full_tree(&c, &k, lanes, start, s0),
+                                        "H {horizon} p_min {p_min} K {max_branches} lanes {lanes} {start:?} {s0:?}"
+                                    );
+                                    compared += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(compared > 1000, "{compared}");
     }
 }
