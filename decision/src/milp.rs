@@ -253,7 +253,8 @@ impl<'p> Builder<'p> {
                 continue; // no flow leaves a state the ego is not in
             }
             let mut out = Expr::default();
-            for j in i.saturating_sub(1)..(i + 2).min(n) {
+            let reachable = i.saturating_sub(1)..(i + 2).min(n);
+            for (j, target) in into.iter_mut().enumerate().take(reachable.end).skip(reachable.start) {
                 let x = self.m.add_col(0.0, 0.0, 1.0, false);
                 self.cols.flows.push(Flow {
                     chain,
@@ -263,7 +264,7 @@ impl<'p> Builder<'p> {
                     col: x,
                 });
                 out = out.term(x, 1.0);
-                into[j] = std::mem::take(&mut into[j]).term(x, 1.0);
+                *target = std::mem::take(target).term(x, 1.0);
                 if j < i {
                     down_flow = down_flow.term(x, 1.0);
                 } else if j > i {

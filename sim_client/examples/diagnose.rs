@@ -26,6 +26,7 @@ fn main() -> anyhow::Result<()> {
     let mut switches: BTreeMap<String, u64> = BTreeMap::new();
     let mut brakes: BTreeMap<String, u64> = BTreeMap::new();
     let mut minutes = 0.0;
+    let mut dwell: BTreeMap<String, u64> = BTreeMap::new();
     // How far along the road `SHOW_FALLBACK` lists SVs (`NEAR_M`, default 80 m).
     let near_m: f64 = std::env::var("NEAR_M").map_or(Ok(80.0), |v| v.parse())?;
     for e in &settings.entries {
@@ -42,8 +43,14 @@ fn main() -> anyhow::Result<()> {
             if std::env::var("SHOW_COUNTS").is_ok() {
                 println!("trial {}:{} switches {}", e.id, trial, ep.metrics().beta_switches);
             }
-            for w in d.windows(2) {
+            let mut last_switch: Option<usize> = None;
+            for (k, w) in d.windows(2).enumerate() {
                 if w[0].beta != w[1].beta {
+                    if let Some(prev) = last_switch {
+                        let key = format!("{}{}", if k - prev < 10 { " " } else { "" }, (k - prev).min(10));
+                        *dwell.entry(key).or_default() += 1;
+                    }
+                    last_switch = Some(k);
                     let lc = w[1].target_lane != w[0].target_lane
                         || w[0].plan.iter().any(|p| p.maneuver.lane != w[1].target_lane);
                     let key = format!(
@@ -155,6 +162,7 @@ fn main() -> anyhow::Result<()> {
         }
     }
     println!("minutes {minutes:.1}");
+    println!("decisions between switches: {dwell:?}");
     println!(
         "beta switches ({:.2}/min):",
         switches.values().sum::<u64>() as f64 / minutes
