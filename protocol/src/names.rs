@@ -13,6 +13,12 @@ pub const ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE: &str = "hmdp/planner/plan/respon
 /// Zenoh key expression of the planner's queryable: the query payload is a
 /// [`PlanRequest`](crate::PlanRequest), the reply a [`PlanResponse`](crate::PlanResponse).
 pub const ZENOH_PLAN_KEY: &str = "hmdp/planner/plan";
+/// Zenoh key expression of every planner instance's own queryable,
+/// `hmdp/planner/plan/<instance>`: the same payloads as [`ZENOH_PLAN_KEY`], sent there by
+/// a client that picks an instance (scale-out and failover, docs/deploy.md).
+pub const ZENOH_PLAN_INSTANCE_KEYS: &str = "hmdp/planner/plan/*";
+/// Zenoh liveliness tokens of the serving planner instances, `hmdp/planner/alive/<instance>`.
+pub const ZENOH_ALIVE_KEYS: &str = "hmdp/planner/alive/*";
 /// Zenoh key expression on which the planner publishes its statistics.
 pub const ZENOH_STATS_KEY: &str = "hmdp/planner/stats";
 

@@ -59,6 +59,13 @@ struct Common {
     /// Zenoh configuration file (JSON5), e.g. deploy/zenoh/client.json5 (with `--transport zenoh`).
     #[arg(long, value_name = "FILE")]
     zenoh_config: Option<PathBuf>,
+    /// With several planner instances: without an answer from the vehicle's instance this
+    /// long, ask the next one (once); see docs/deploy.md, "Scaling out".
+    #[arg(long, value_name = "D", value_parser = humantime::parse_duration, default_value = "150ms")]
+    zenoh_retry_after: std::time::Duration,
+    /// How long an instance that left a request unanswered is tried last.
+    #[arg(long, value_name = "D", value_parser = humantime::parse_duration, default_value = "2s")]
+    zenoh_suspect_for: std::time::Duration,
     /// iceoryx2 shared-memory prefix of the planner (with `--transport iceoryx2`).
     #[arg(long, value_name = "PREFIX")]
     iceoryx2_prefix: Option<String>,
@@ -147,6 +154,10 @@ impl Common {
                     endpoint: self.zenoh_connect.clone(),
                     config_file: self.zenoh_config.clone(),
                     verifier,
+                    failover: transport::zenoh::Failover {
+                        retry_after: self.zenoh_retry_after,
+                        suspect_for: self.zenoh_suspect_for,
+                    },
                 };
                 let planner = match (zenoh_flags, self.spawn_planner) {
                     (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),

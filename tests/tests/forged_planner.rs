@@ -1,8 +1,8 @@
 //! Vehicles cannot be fooled by a forged planner: `planner serve --signing-key` signs every
 //! answer, and a vehicle with the planner's public key takes only those.
 //!
-//! A forger on the same Zenoh network declares a complete queryable on `hmdp/planner/plan`
-//! and answers every request at once, before the real planner, with a well-formed decision
+//! A forger on the same Zenoh network declares a complete queryable on `hmdp/planner/plan/**`
+//! (the plain key and every instance's) and answers every request at once, before the real planner, with a well-formed decision
 //! for that very vehicle and sequence: unsigned, or signed with a key of its own. The test
 //! first shows that the attack is real (a vehicle without the key sees the forgeries), then
 //! that vehicles with the key (the Rust channel, `sim_client load`, the Python client) refuse
@@ -69,7 +69,7 @@ impl Forger {
         let sent = Arc::new(AtomicU64::new(0));
         let counter = Arc::clone(&sent);
         let queryable = session
-            .declare_queryable(ZENOH_PLAN_KEY)
+            .declare_queryable(format!("{ZENOH_PLAN_KEY}/**"))
             .complete(true)
             .callback(move |query: Query| {
                 let format = format_of(query.encoding());
@@ -112,6 +112,7 @@ fn vehicle(planner: &ZenohPlanner, verifier: Option<ResponseVerifier>) -> ZenohC
         endpoint: Some(planner.endpoint.clone()),
         config_file: None,
         verifier,
+        failover: Default::default(),
     };
     ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
         .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))

@@ -31,6 +31,7 @@ fn zenoh_vehicle(planner: &ZenohPlanner) -> ZenohChannel {
         endpoint: Some(planner.endpoint.clone()),
         config_file: None,
         verifier: None,
+        failover: Default::default(),
     };
     ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
         .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))

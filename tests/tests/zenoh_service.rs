@@ -36,6 +36,7 @@ impl Client {
             endpoint: Some(endpoint.to_string()),
             config_file: None,
             verifier: None,
+            failover: Default::default(),
         };
         let channel = ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
             .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", log()));

@@ -61,7 +61,7 @@ enum Command {
     /// Serve decisions over iceoryx2 (shared memory, this machine) and/or Zenoh (queryable
     /// `hmdp/planner/plan`, statistics on `hmdp/planner/stats`) until SIGINT or SIGTERM.
     /// See docs/service.md.
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Make an Ed25519 key pair for signed answers: OUT (the secret seed, mode 0600, for
     /// `serve --signing-key` or `[service] signing_key`) and OUT.pub (the public key, for the
     /// vehicles). Refuses to overwrite. See docs/deploy.md.
@@ -125,6 +125,11 @@ struct ServeArgs {
     /// Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable).
     #[arg(long = "zenoh-connect", value_name = "ENDPOINT")]
     zenoh_connect: Vec<String>,
+    /// This instance's name among several planners on one Zenoh network (its queryable
+    /// `hmdp/planner/plan/ID`, its liveliness token `hmdp/planner/alive/ID`); A-Z a-z 0-9 . _ -
+    /// (default: host name and process id). See docs/deploy.md, "Scaling out".
+    #[arg(long, value_name = "ID")]
+    instance_id: Option<String>,
     /// Worker threads, each with its own planner (default: available cores).
     #[arg(long)]
     workers: Option<usize>,
@@ -269,12 +274,12 @@ fn spawn_iceoryx2(
 /// itself (which is an error: systemd then restarts the planner).
 async fn run_until_stopped(
     service: Arc<Service>,
-    zenoh_config: Option<zenoh::Config>,
+    zenoh_config: Option<(zenoh::Config, String)>,
     iceoryx2_done: Option<oneshot::Receiver<Result<()>>>,
 ) -> Result<()> {
     let (shutdown_tx, shutdown_rx) = oneshot::channel::<()>();
-    let mut zenoh_task = zenoh_config.map(|cfg| {
-        tokio::spawn(planner::zenoh_front::serve(service, cfg, async move {
+    let mut zenoh_task = zenoh_config.map(|(cfg, instance)| {
+        tokio::spawn(planner::zenoh_front::serve(service, cfg, instance, async move {
             let _ = shutdown_rx.await;
         }))
     });
@@ -325,12 +330,18 @@ fn serve(args: ServeArgs) -> Result<()> {
         tracing::warn!(ms = args.inject_solve_delay_ms, "TEST ONLY: injected solve delay");
     }
     let zenoh_config = if zenoh_wanted {
-        Some(transport::zenoh::config(
+        let instance = args
+            .instance_id
+            .clone()
+            .unwrap_or_else(transport::zenoh::instances::default_instance_id);
+        transport::zenoh::instances::check_instance_id(&instance)?;
+        let config = transport::zenoh::config(
             transport::zenoh::Mode::Peer,
             args.zenoh_config.as_deref(),
             &args.zenoh_listen,
             &args.zenoh_connect,
-        )?)
+        )?;
+        Some((config, instance))
     } else {
         None
     };
@@ -527,7 +538,7 @@ fn main() -> Result<()> {
         }
         Command::DefaultConfig => print!("{}", PlannerConfig::default().to_toml_string()),
         Command::Keygen { out } => keygen(&out)?,
-        Command::Serve(args) => serve(args)?,
+        Command::Serve(args) => serve(*args)?,
         Command::Replay { files, config, json } => {
             let code = replay(&files, config.as_deref(), json)?;
             if code != 0 {

@@ -45,6 +45,7 @@ impl PlanChannel for InProcessChannel {
             answered_at: Some(Instant::now()),
             extra_responses: 0,
             refused: Vec::new(),
+            retries: 0,
         })
     }
 

@@ -68,6 +68,9 @@ pub struct Answer {
     /// Answers refused because they did not verify with the planner's key (forged, altered
     /// or unsigned), and why; never taken as the answer.
     pub refused: Vec<VerifyError>,
+    /// Times the request was sent again to another planner instance (Zenoh failover, 0 or
+    /// 1); the retried instance's answers are discarded once one is taken.
+    pub retries: usize,
 }
 
 /// A request/answer channel to a planner: one request at a time.

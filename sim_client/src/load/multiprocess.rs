@@ -36,6 +36,13 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
             if let Some(v) = &target.verifier {
                 flags.extend(["--planner-public-key".into(), v.to_hex()]);
             }
+            let failover = &target.failover;
+            for (flag, d) in [
+                ("--zenoh-retry-after", failover.retry_after),
+                ("--zenoh-suspect-for", failover.suspect_for),
+            ] {
+                flags.extend([flag.into(), format!("{}ms", d.as_millis())]);
+            }
         }
     }
     flags

@@ -48,6 +48,10 @@ pub struct Counts {
     /// forged, altered or unsigned. Absent in reports written before signed answers.
     #[serde(default)]
     pub refused: u64,
+    /// Requests sent again to another planner instance after 150 ms without an answer
+    /// (Zenoh, several instances; docs/deploy.md, "Scaling out"). Not a violation.
+    #[serde(default)]
+    pub retried: u64,
 }
 
 impl Counts {
@@ -60,6 +64,7 @@ impl Counts {
         self.duplicated += o.duplicated;
         self.mismatched += o.mismatched;
         self.refused += o.refused;
+        self.retried += o.retried;
     }
 
     /// Requests not answered by their deadline (late or lost).
@@ -245,8 +250,8 @@ impl LoadReport {
         let c = &self.counts;
         let l = &self.by_layer;
         let mut out = format!(
-            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}, refused {}; {:.1} decisions/s in time\n",
-            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, c.refused, self.throughput_per_s
+            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}, refused {}, retried {}; {:.1} decisions/s in time\n",
+            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, c.refused, c.retried, self.throughput_per_s
         );
         out += &format!(
             "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, stale fallback {}, rejected {}\n",

@@ -64,6 +64,7 @@ impl VehicleStats {
         c.sent += 1;
         c.duplicated += trip.answer.extra_responses as u64;
         c.refused += trip.answer.refused.len() as u64;
+        c.retried += trip.answer.retries as u64;
         match kind {
             AnswerKind::InTime => c.in_time += 1,
             AnswerKind::Late => c.late += 1,

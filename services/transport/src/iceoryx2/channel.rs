@@ -49,6 +49,7 @@ impl PlanChannel for Iceoryx2Channel {
             response: exchange.response,
             extra_responses: exchange.extra_responses,
             refused: exchange.refused,
+            retries: 0,
         })
     }
 

@@ -1,17 +1,22 @@
 //! The protocol over Zenoh: every Zenoh configuration of the project (the planner's, the
-//! vehicles', the tests') and the vehicle's [`ZenohChannel`].
+//! vehicles', the tests'), the vehicle's [`ZenohChannel`] and how it shares the vehicles
+//! among several planner instances ([`instances`]).
+
+mod channel;
+pub mod instances;
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use ::zenoh::bytes::Encoding;
-use ::zenoh::query::{ConsolidationMode, Querier};
-use ::zenoh::{Config, Session, Wait};
+use ::zenoh::Config;
 use protocol::{
-    PlanRequest, PlanResponse, ResponseVerifier, WireFormat, ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_KEY,
+    ResponseVerifier, WireFormat, ENCODING_BINCODE, ENCODING_JSON, ZENOH_PLAN_INSTANCE_KEYS, ZENOH_PLAN_KEY,
 };
 
-use crate::{await_ready, Answer, ChannelError, PlanChannel};
+pub use channel::ZenohChannel;
+
+use crate::ChannelError;
 
 /// Zenoh's error of a failed call, kept as the source.
 pub type Cause = ::zenoh::Error;
@@ -40,6 +45,7 @@ pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[Str
         json.as_object_mut()
             .expect("an object")
             .extend(hardening().as_object().expect("an object").clone());
+        json["transport"]["link"]["tx"] = lease();
         return Config::from_json5(&json.to_string()).map_err(|source| ChannelError::ZenohConfig {
             what: "built-in".into(),
             source,
@@ -72,6 +78,16 @@ pub fn reconnect() -> serde_json::Value {
     serde_json::json!({ "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 })
 }
 
+/// How long a session's peers wait for a sign of life before they drop it (its lease, which
+/// each side announces and the other enforces), and how many keep-alives it sends per lease:
+/// 3 s and 4. Zenoh's default, 10 s, is how long a router keeps a hung (e.g. SIGSTOPped)
+/// planner's liveliness token and queryable; a vehicle's retry bounds what the hang costs
+/// it, the lease how long vehicles keep trying the hung instance first. Set in the built-in
+/// configurations and the shipped planner files.
+pub fn lease() -> serde_json::Value {
+    serde_json::json!({ "lease": 3000, "keep_alive": 4 })
+}
+
 /// Largest Zenoh message any session of the project accepts (a request is at most a few
 /// KiB, see docs/protocol.md). Zenoh's own default is 1 GiB: a peer could make the planner
 /// buffer that much for one query. A larger message is dropped while it is reassembled,
@@ -82,7 +98,8 @@ pub const MAX_MESSAGE_SIZE: usize = 64 * 1024;
 /// and every file in `deploy/zenoh/`, checked by a test):
 ///
 /// * `transport/link/rx/max_message_size` = [`MAX_MESSAGE_SIZE`];
-/// * queries on `hmdp/planner/plan` arriving at a session are re-marked congestion control
+/// * queries on `hmdp/planner/plan` and on the instances' keys `hmdp/planner/plan/*`
+///   arriving at a session are re-marked congestion control
 ///   *drop*. A reply inherits its query's congestion control, and a querier may ask for
 ///   *block*: then one peer that stops reading its socket blocks the replier's sending for
 ///   seconds (until Zenoh closes that transport), and every other vehicle with it. With
@@ -93,7 +110,7 @@ pub fn hardening() -> serde_json::Value {
         "qos": { "network": [{
             "id": "plan-replies-never-block",
             "messages": ["query"],
-            "key_exprs": [ZENOH_PLAN_KEY],
+            "key_exprs": [ZENOH_PLAN_KEY, ZENOH_PLAN_INSTANCE_KEYS],
             "flows": ["ingress", "egress"],
             "overwrite": { "congestion_control": "drop" },
         }] },
@@ -133,6 +150,30 @@ pub struct ZenohTarget {
     /// The planner's public key: answers that do not verify are refused (also the probe's,
     /// so that only the real planner makes a channel ready). `None`: every answer is taken.
     pub verifier: Option<ResponseVerifier>,
+    /// How a request fails over between planner instances.
+    pub failover: Failover,
+}
+
+/// How a vehicle's channel shares out its requests when several planner instances serve
+/// (docs/deploy.md, "Scaling out"): each request goes to the vehicle's first live instance
+/// in rendezvous order, and once more to the next one if no valid answer came in time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Failover {
+    /// Without a valid answer this long after sending (or when the instance's query ended
+    /// without one), the request goes to the next instance, once. Well inside the 380 ms a
+    /// planner is given, far above a solve (a few ms).
+    pub retry_after: Duration,
+    /// How long an instance that left a query unanswered is tried last.
+    pub suspect_for: Duration,
+}
+
+impl Default for Failover {
+    fn default() -> Self {
+        Self {
+            retry_after: Duration::from_millis(150),
+            suspect_for: Duration::from_secs(2),
+        }
+    }
 }
 
 impl ZenohTarget {
@@ -145,150 +186,11 @@ impl ZenohTarget {
         config(Mode::Client, self.config_file.as_deref(), &[], &connect)
     }
 
-    fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         self.endpoint
             .clone()
             .or_else(|| self.config_file.as_ref().map(|f| f.display().to_string()))
             .unwrap_or_default()
-    }
-}
-
-/// Requests as Zenoh queries on [`ZENOH_PLAN_KEY`] (bincode payloads). Every reply is
-/// read (no consolidation): with a key, a forged reply that arrives first does not hide the
-/// planner's.
-pub struct ZenohChannel {
-    session: Session,
-    querier: Querier<'static>,
-    verifier: Option<ResponseVerifier>,
-}
-
-impl ZenohChannel {
-    /// Opens a session to `target` (retrying until `ready_timeout`), declares a querier whose
-    /// queries end after `query_timeout`, and waits until a planner answers a probe (the
-    /// empty query, which comes back rejected).
-    pub fn connect(
-        target: &ZenohTarget,
-        ready_timeout: Duration,
-        query_timeout: Duration,
-    ) -> Result<Self, ChannelError> {
-        let since = Instant::now();
-        let at = || format!("at {}", target.describe());
-        let session = loop {
-            match ::zenoh::open(target.config()?).wait() {
-                Ok(s) => break s,
-                Err(source) if since.elapsed() >= ready_timeout => {
-                    return Err(ChannelError::Zenoh {
-                        what: format!("cannot reach the planner {}", at()),
-                        source,
-                    })
-                }
-                Err(_) => std::thread::sleep(Duration::from_millis(100)),
-            }
-        };
-        let querier = session
-            .declare_querier(ZENOH_PLAN_KEY)
-            .timeout(query_timeout)
-            .consolidation(ConsolidationMode::None)
-            .wait()
-            .map_err(|source| ChannelError::Zenoh {
-                what: "declaring the querier".into(),
-                source,
-            })?;
-        let channel = Self {
-            session,
-            querier,
-            verifier: target.verifier.clone(),
-        };
-        // Say why when only refused answers came: a planner without the key is not absent.
-        let refused = std::cell::Cell::new(None);
-        let at_why = || match refused.get() {
-            Some(e) => format!("{} with a verified answer ({e})", at()),
-            None => at(),
-        };
-        await_ready(since, ready_timeout, Duration::from_millis(100), at_why, || {
-            let replies = channel.ask_raw(&[], WireFormat::Bincode, Duration::from_millis(500));
-            if channel.verifier.is_none() {
-                return Ok(!replies.is_empty());
-            }
-            let mut ready = false;
-            for (bytes, _) in &replies {
-                match channel.verified(bytes) {
-                    Ok(_) => ready = true,
-                    Err(Some(e)) => refused.set(Some(e)),
-                    Err(None) => {}
-                }
-            }
-            Ok(ready)
-        })?;
-        Ok(channel)
-    }
-
-    /// A reply decoded and, with a key, verified. `Err(None)`: it does not decode.
-    fn verified(&self, bytes: &[u8]) -> Result<PlanResponse, Option<protocol::VerifyError>> {
-        let response = protocol::decode_bincode::<PlanResponse>(bytes).map_err(|e| {
-            tracing::warn!("undecodable answer: {e}");
-            None
-        })?;
-        match &self.verifier {
-            Some(verifier) => verifier.verify(&response).map(|()| response).map_err(Some),
-            None => Ok(response),
-        }
-    }
-
-    /// Every reply payload to one query of `payload` in `format`, until every queryable has
-    /// answered, the querier's timeout, or `wait` (after the first reply).
-    pub fn ask_raw(&self, payload: &[u8], format: WireFormat, wait: Duration) -> Vec<(Vec<u8>, Instant)> {
-        let deadline = Instant::now() + wait;
-        let mut replies_seen = Vec::new();
-        let Ok(replies) = self
-            .querier
-            .get()
-            .payload(payload.to_vec())
-            .encoding(encoding(format))
-            .wait()
-        else {
-            return replies_seen;
-        };
-        while let Ok(Some(reply)) = replies.recv_deadline(deadline) {
-            if let Ok(sample) = reply.result() {
-                replies_seen.push((sample.payload().to_bytes().into_owned(), Instant::now()));
-            }
-            if deadline <= Instant::now() {
-                break;
-            }
-        }
-        replies_seen
-    }
-
-    /// The Zenoh session (to declare more entities on it).
-    pub fn session(&self) -> &Session {
-        &self.session
-    }
-}
-
-impl PlanChannel for ZenohChannel {
-    fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, ChannelError> {
-        let mut answer = Answer::default();
-        // Answers after the first are counted, not used.
-        for (bytes, at) in self.ask_raw(&protocol::encode_bincode(&request), WireFormat::Bincode, wait) {
-            match self.verified(&bytes) {
-                Ok(response) if answer.response.is_none() => {
-                    answer.response = Some(response);
-                    answer.answered_at = Some(at);
-                }
-                Ok(_) => answer.extra_responses += 1,
-                Err(Some(e)) => {
-                    tracing::warn!(sequence = request.sequence, "answer refused: {e}");
-                    answer.refused.push(e);
-                }
-                Err(None) => {}
-            }
-        }
-        Ok(answer)
-    }
-
-    fn name(&self) -> &'static str {
-        "zenoh"
     }
 }
 
@@ -307,7 +209,11 @@ mod tests {
             .unwrap_or_else(|| panic!("{what}: no qos rule plan-replies-never-block in {qos}"));
         assert_eq!(rule["overwrite"]["congestion_control"], "drop", "{what}");
         assert_eq!(rule["messages"], serde_json::json!(["query"]), "{what}");
-        assert_eq!(rule["key_exprs"], serde_json::json!([ZENOH_PLAN_KEY]), "{what}");
+        assert_eq!(
+            rule["key_exprs"],
+            serde_json::json!([ZENOH_PLAN_KEY, ZENOH_PLAN_INSTANCE_KEYS]),
+            "{what}"
+        );
     }
 
     #[test]
@@ -338,15 +244,37 @@ mod tests {
         }
     }
 
+    /// The planner's lease: a hung planner is dropped by its router after 3 s, not 10 s.
+    fn assert_short_lease(config: &Config, what: &str) {
+        for (key, want) in lease().as_object().unwrap() {
+            let got = config.get_json(&format!("transport/link/tx/{key}")).unwrap();
+            assert_eq!(got, want.to_string(), "{what}: transport/link/tx/{key}");
+        }
+    }
+
+    #[test]
+    fn built_in_configurations_have_the_short_lease() {
+        for mode in [Mode::Peer, Mode::Client] {
+            assert_short_lease(&config(mode, None, &[], &[]).unwrap(), &format!("{mode:?}"));
+        }
+    }
+
     #[test]
     fn every_shipped_configuration_is_hardened() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy/zenoh");
-        let (mut checked, mut connecting) = (0, 0);
+        let (mut checked, mut connecting, mut planners) = (0, 0, 0);
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "json5") {
                 let config = Config::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert_hardened(&config, &path.display().to_string());
+                if path
+                    .file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with("planner"))
+                {
+                    assert_short_lease(&config, &path.display().to_string());
+                    planners += 1;
+                }
                 let endpoints: serde_json::Value =
                     serde_json::from_str(&config.get_json("connect/endpoints").unwrap()).unwrap();
                 if endpoints.as_array().is_some_and(|e| !e.is_empty()) {
@@ -358,5 +286,6 @@ mod tests {
         }
         assert!(checked >= 6, "only {checked} files in {}", dir.display());
         assert!(connecting >= 4, "only {connecting} files connect");
+        assert_eq!(planners, 2, "planner.json5 and planner-tls.json5");
     }
 }
