@@ -444,12 +444,25 @@ impl Drop for Service {
 
 /// Answers `job` with the fallback marked `layer`, if nobody answered yet.
 fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats, layer: Layer) -> bool {
+    answer_fallback_counted(config, job, stats, layer, |_| {})
+}
+
+/// [`answer_fallback`], with `count` applied to the counters before the answer leaves: a
+/// client that reads the statistics once it has its answer finds it counted.
+fn answer_fallback_counted(
+    config: &PlannerConfig,
+    job: &JobState,
+    stats: &Stats,
+    layer: Layer,
+    count: impl FnOnce(&mut Counters),
+) -> bool {
     let Some(reply) = job.take_reply() else {
         return false;
     };
     let mut response = protocol::fallback_answer(config, &job.request, layer);
     response.queue_us = micros(job.arrival.elapsed());
     stats.record_answer(&response, job.arrival);
+    count(&mut stats.lock().counters);
     reply(response);
     true
 }
@@ -480,9 +493,7 @@ fn worker(
         }
         // The request may have become stale while it waited in the queue.
         if job.request.is_stale_at(unix_now_ns(), job.allowed, tolerance) {
-            if answer_fallback(config, &job, stats, Layer::StaleFallback) {
-                stats.lock().counters.stale_in_queue += 1;
-            }
+            answer_fallback_counted(config, &job, stats, Layer::StaleFallback, |c| c.stale_in_queue += 1);
             continue;
         }
         let started = Instant::now();
