@@ -9,9 +9,7 @@
 //! with HiGHS. Its accelerations are then scored by the closed form, so both paths share one
 //! definition of the cost.
 
-use std::cell::RefCell;
-
-use crate::highs_solver::{HighsSolver, MipModel, MipStatus};
+use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
 use crate::model::{rollout, Rollout};
 use crate::problem::Problem;
 use crate::types::Action;
@@ -187,11 +185,6 @@ fn score(problem: &Problem, r: Rollout, rows: &[Requirement], mode: Mode, tol: f
     })
 }
 
-thread_local! {
-    /// The LP solver of this thread's exact evaluations (HiGHS keeps per-thread state).
-    static LP: RefCell<Option<HighsSolver>> = const { RefCell::new(None) };
-}
-
 /// Best accelerations for the fixed sequence `r` (an LP), or `None` when no acceleration
 /// within the states' ranges meets the rows.
 fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> Option<Vec<f64>> {
@@ -240,20 +233,11 @@ fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode
         }
         m.add_row(row.rhs, f64::INFINITY, &mut terms);
     }
-    LP.with(|cell| {
-        let mut slot = cell.borrow_mut();
-        if slot.is_none() {
-            // No time limit: HiGHS's LP clock runs on across the runs of one instance, so any
-            // finite limit would eventually stop every LP of a long-lived thread.
-            *slot = Some(HighsSolver::new(f64::INFINITY).expect("HiGHS instance for the exact evaluation"));
-        }
-        let solver = slot.as_mut().expect("just created");
-        let result = solver.solve(&m, None).expect("HiGHS LP of the exact evaluation");
-        match (result.status, result.columns) {
-            (MipStatus::Optimal, Some(cols)) => Some(u.iter().map(|&c| cols[c]).collect()),
-            _ => None,
-        }
-    })
+    let result = with_thread_lp(|solver| solver.solve(&m, None)).expect("HiGHS LP of the exact evaluation");
+    match (result.status, result.columns) {
+        (MipStatus::Optimal, Some(cols)) => Some(u.iter().map(|&c| cols[c]).collect()),
+        _ => None,
+    }
 }
 
 /// Evaluate `actions`; `None` if `clip` discards an action or a constraint cannot be met.

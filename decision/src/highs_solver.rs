@@ -424,6 +424,25 @@ impl HighsSolver {
     }
 }
 
+thread_local! {
+    /// This thread's LP instance (HiGHS keeps per-thread state): the exact evaluation's LPs
+    /// and the MILP's relaxations share it.
+    static LP: std::cell::RefCell<Option<HighsSolver>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Run `f` on this thread's LP instance, created on first use. It has no time limit:
+/// HiGHS's LP clock runs on across the runs of one instance, so any finite limit would
+/// eventually stop every LP of a long-lived thread (these LPs end in microseconds).
+pub fn with_thread_lp<R>(f: impl FnOnce(&mut HighsSolver) -> Result<R, SolverError>) -> Result<R, SolverError> {
+    LP.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        if slot.is_none() {
+            *slot = Some(HighsSolver::new(f64::INFINITY)?);
+        }
+        f(slot.as_mut().expect("just created"))
+    })
+}
+
 impl Drop for HighsSolver {
     fn drop(&mut self) {
         // SAFETY: ptr came from Highs_create and is destroyed exactly once; the callback data

@@ -5,7 +5,7 @@ use super::{build, decode, Columns};
 use crate::config::SolverSettings;
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
-use crate::highs_solver::{HighsSolver, InterruptHandle, MipModel, MipResult, MipStatus};
+use crate::highs_solver::{with_thread_lp, HighsSolver, InterruptHandle, MipModel, MipResult, MipStatus};
 use crate::problem::Problem;
 use crate::types::Action;
 
@@ -49,8 +49,6 @@ enum Relaxation {
 /// The MILP backend: one long-lived HiGHS instance.
 pub struct MilpBackend {
     solver: HighsSolver,
-    /// Solves the models' LP relaxations (no time limit; see `solve_relaxation`).
-    relaxation: HighsSolver,
     /// Try the LP relaxation before the MIP (`solver.relaxation_first`).
     relaxation_first: bool,
 }
@@ -64,7 +62,6 @@ impl MilpBackend {
         }
         Ok(Self {
             solver,
-            relaxation: HighsSolver::new(f64::INFINITY)?,
             relaxation_first: settings.relaxation_first,
         })
     }
@@ -91,7 +88,7 @@ impl MilpBackend {
         incumbent: Option<&Evaluation>,
     ) -> Result<Relaxation, SolverError> {
         let (model, cols) = built;
-        let lp = self.relaxation.solve_relaxation(model)?;
+        let lp = with_thread_lp(|lp| lp.solve_relaxation(model))?;
         let (bound, values) = match (lp.status, lp.columns) {
             (MipStatus::Infeasible, _) => return Ok(Relaxation::NothingBetter),
             (MipStatus::Optimal, Some(values)) => (lp.objective, values),
