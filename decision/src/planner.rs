@@ -123,7 +123,10 @@ impl Planner {
         if prev.len() > 1 {
             let mut shifted: Vec<Action> = prev[1..].to_vec();
             shifted.resize(h, Action::KEEP);
-            out.insert(0, shifted);
+            // Cruising, the shifted plan is "keep everything" again: one LP, not two.
+            if shifted != out[0] {
+                out.insert(0, shifted);
+            }
         }
         out
     }
@@ -241,4 +244,48 @@ pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<De
     let mut d = fallback_decision(config, situation, &prepared.problem, stats, prepared.memory.clone());
     d.stats.total_us = started.elapsed().as_micros() as u64;
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::{EgoState, Maneuver, PlannerMemory, Road};
+
+    fn cruising(previous_plan: Vec<Action>) -> Situation {
+        Situation {
+            road: Road {
+                lanes: 3,
+                lane_width_m: 4.0,
+                speed_limit_mps: 40.0,
+            },
+            ego: EgoState {
+                x_m: 0.0,
+                y_m: 4.0,
+                v_mps: 25.0,
+                desired_speed_mps: 25.0,
+                maneuver: Maneuver { lane: 2, beta: 0 },
+            },
+            svs: Vec::new(),
+            memory: PlannerMemory {
+                previous_plan,
+                ..PlannerMemory::default()
+            },
+        }
+    }
+
+    #[test]
+    fn warm_candidates_are_the_shifted_plan_and_keep_everything_once_each() {
+        let planner = Planner::new(PlannerConfig::default()).unwrap();
+        let keep = vec![Action::KEEP; 3];
+        // Cruising: the shifted plan is "keep everything" itself.
+        assert_eq!(planner.warm_candidates(&cruising(keep.clone())), vec![keep.clone()]);
+        let brake = Action {
+            lateral: 0,
+            longitudinal: -1,
+        };
+        let plan = vec![Action::KEEP, brake, Action::KEEP];
+        let shifted = vec![brake, Action::KEEP, Action::KEEP];
+        assert_eq!(planner.warm_candidates(&cruising(plan)), vec![shifted, keep.clone()]);
+        assert_eq!(planner.warm_candidates(&cruising(Vec::new())), vec![keep]);
+    }
 }
