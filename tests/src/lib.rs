@@ -1,6 +1,7 @@
 //! Helpers for tests that run the workspace's binaries as separate processes.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 /// Path of a workspace binary built in the same profile as the running test.
 ///
@@ -131,6 +132,29 @@ impl ZenohPlanner {
     pub fn log(&self) -> String {
         self.process.log()
     }
+
+    /// A vehicle's channel to this planner (verifying answers with `verifier`), once the
+    /// planner answers; panics with the planner's log if it never does.
+    pub fn vehicle(&self, verifier: Option<protocol::ResponseVerifier>) -> transport::zenoh::ZenohChannel {
+        let target = transport::zenoh::ZenohTarget {
+            endpoint: Some(self.endpoint.clone()),
+            config_file: None,
+            verifier,
+            failover: Default::default(),
+        };
+        // Debug builds on a shared machine may take long to start answering.
+        transport::zenoh::ZenohChannel::connect(&target, Duration::from_secs(60), Duration::from_secs(5))
+            .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", self.log()))
+    }
+}
+
+/// Sends signal `name` (e.g. `STOP`, `CONT`) to process `pid` with `kill`.
+pub fn signal(pid: u32, name: &str) {
+    let status = std::process::Command::new("kill")
+        .args([&format!("-{name}"), &pid.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success(), "kill -{name} {pid}");
 }
 
 /// The worked example of docs/protocol.md (3 lanes, one SV 30 m ahead), as `vehicle_id`'s

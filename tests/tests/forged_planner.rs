@@ -21,7 +21,7 @@ use protocol::{
 };
 use system_tests::{binary, python_ready, scratch_dir, worked_example_request, Iceoryx2Prefix, ZenohPlanner};
 use transport::iceoryx2::{Client, ClientOptions};
-use transport::zenoh::{encoding, format_of, ZenohChannel, ZenohTarget};
+use transport::zenoh::{encoding, format_of};
 use transport::PlanChannel;
 use zenoh::query::Query;
 use zenoh::Wait;
@@ -107,17 +107,6 @@ fn forged(response: &PlanResponse) -> bool {
     matches!(response.outcome.get(), Ok(OutcomeRef::Decided(d)) if d.setpoint.accel_mps2 == FORGED_ACCEL)
 }
 
-fn vehicle(planner: &ZenohPlanner, verifier: Option<ResponseVerifier>) -> ZenohChannel {
-    let target = ZenohTarget {
-        endpoint: Some(planner.endpoint.clone()),
-        config_file: None,
-        verifier,
-        failover: Default::default(),
-    };
-    ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
-        .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))
-}
-
 #[test]
 fn vehicles_with_the_key_refuse_a_racing_forger_and_take_only_the_planner() {
     let dir = scratch_dir("forged");
@@ -125,11 +114,11 @@ fn vehicles_with_the_key_refuse_a_racing_forger_and_take_only_the_planner() {
     let secret_arg = secret.to_str().unwrap();
     let planner = ZenohPlanner::start("forged", &["--signing-key", secret_arg]);
     let verifier = ResponseVerifier::from_file(&public).unwrap();
-    let honest = vehicle(&planner, Some(verifier.clone()));
+    let honest = planner.vehicle(Some(verifier.clone()));
     let forger = Forger::start(&planner.endpoint);
 
     // The attack is real: a vehicle without the key gets the forgeries.
-    let naive = vehicle(&planner, None);
+    let naive = planner.vehicle(None);
     let mut forgeries_seen = 0;
     for sequence in 1..=10 {
         let request = worked_example_request(8, sequence);

@@ -18,26 +18,12 @@ use std::time::{Duration, Instant};
 
 use protocol::{decode_bincode, encode_bincode, Layer, PlanResponse, WireFormat, ZENOH_PLAN_KEY};
 use system_tests::{worked_example_request, ZenohPlanner as Planner};
-use transport::zenoh::{ZenohChannel, ZenohTarget};
+use transport::zenoh::ZenohChannel;
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
-/// How long a planner may take to start answering (debug builds on a shared machine).
-const STARTUP: Duration = Duration::from_secs(60);
-
 /// Environment variable that turns this executable into the never-reading attacker.
 const ATTACK_ENDPOINT: &str = "HMDP_NEVER_READING_ENDPOINT";
-
-fn vehicle(planner: &Planner) -> ZenohChannel {
-    let target = ZenohTarget {
-        endpoint: Some(planner.endpoint.clone()),
-        config_file: None,
-        verifier: None,
-        failover: Default::default(),
-    };
-    ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
-        .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))
-}
 
 /// A Zenoh client session as an attacker would configure it: none of the project's
 /// hardening, queries with congestion control *block*. `extra` is merged into the top level.
@@ -101,7 +87,7 @@ fn normal_vehicle(channel: &ZenohChannel, requests: u64) -> VictimFigures {
 #[test]
 fn serve_ignores_sigpipe() {
     let planner = Planner::start("sigpipe", &[]);
-    drop(vehicle(&planner));
+    drop(planner.vehicle(None));
     let mask = u64::from_str_radix(&proc_status(planner.process.id(), "SigIgn"), 16).unwrap();
     assert_ne!(mask & (1 << (SIGPIPE - 1)), 0, "SIGPIPE not ignored: SigIgn {mask:x}");
 }
@@ -113,7 +99,7 @@ const SIGPIPE: u32 = 13;
 fn oversized_queries_are_dropped_unbuffered_and_memory_stays_bounded() {
     const BIG: usize = 100 * 1024 * 1024;
     let planner = Planner::start("oversized", &[]);
-    let channel = vehicle(&planner);
+    let channel = planner.vehicle(None);
     let before_kb: u64 = proc_status(planner.process.id(), "VmHWM")
         .trim_end_matches(" kB")
         .parse()
@@ -203,7 +189,7 @@ fn never_reading_attacker() {
 #[test]
 fn a_peer_that_never_reads_costs_other_vehicles_nothing() {
     let planner = Planner::start("never-reading", &[]);
-    let channel = vehicle(&planner);
+    let channel = planner.vehicle(None);
     let mut attacker = supervise::Supervised::spawn(
         Command::new(std::env::current_exe().unwrap())
             .args(["--exact", "never_reading_attacker", "--ignored", "--nocapture"])
@@ -226,7 +212,7 @@ fn a_peer_that_never_reads_costs_other_vehicles_nothing() {
 #[test]
 fn a_flooding_vehicle_does_not_starve_another() {
     let planner = Planner::start("flood", &[]);
-    let channel = vehicle(&planner);
+    let channel = planner.vehicle(None);
     let stop = Arc::new(AtomicBool::new(false));
     let flood_replies = Arc::new(AtomicU64::new(0));
     // Vehicle 666, from two sessions, about 2,000 real requests per second without waiting

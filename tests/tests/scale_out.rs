@@ -17,7 +17,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use protocol::PlanResponse;
-use system_tests::{free_port, worked_example_request, Process};
+use system_tests::{free_port, signal, worked_example_request, Process};
 use transport::zenoh::instances::rendezvous_order;
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 use transport::{Answer, PlanChannel};
@@ -182,14 +182,6 @@ fn two_instances_share_the_vehicles_and_answer_each_request_once() {
     for (id, n) in INSTANCES.iter().zip(&answered) {
         assert!(*n * 10 >= total * 3, "{id} answered {n} of {total}");
     }
-}
-
-fn signal(pid: u32, name: &str) {
-    let status = std::process::Command::new("kill")
-        .args([&format!("-{name}"), &pid.to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(status.success(), "kill -{name} {pid}");
 }
 
 /// Sends `count` requests of `vehicle` at 10 Hz, each answered (by [`ask`]), calling

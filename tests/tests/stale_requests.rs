@@ -14,9 +14,9 @@ use std::time::{Duration, Instant};
 use protocol::{
     decode_bincode, encode_bincode, unix_now_ns, Layer, PlanRequest, PlanResponse, WireFormat, ZENOH_PLAN_KEY,
 };
-use system_tests::{worked_example_request, Iceoryx2Prefix, ZenohPlanner};
+use system_tests::{signal, worked_example_request, Iceoryx2Prefix, ZenohPlanner};
 use transport::iceoryx2::{Client, ClientOptions};
-use transport::zenoh::{encoding, ZenohChannel, ZenohTarget};
+use transport::zenoh::{encoding, ZenohChannel};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::query::Reply;
 use zenoh::Wait;
@@ -25,17 +25,6 @@ use zenoh::Wait;
 const STARTUP: Duration = Duration::from_secs(60);
 /// The planner's default deadline plus its default clock-skew tolerance.
 const STALE_AFTER: Duration = Duration::from_millis(400 + 50);
-
-fn zenoh_vehicle(planner: &ZenohPlanner) -> ZenohChannel {
-    let target = ZenohTarget {
-        endpoint: Some(planner.endpoint.clone()),
-        config_file: None,
-        verifier: None,
-        failover: Default::default(),
-    };
-    ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
-        .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", planner.log()))
-}
 
 fn layer(response: &PlanResponse) -> Layer {
     response
@@ -56,7 +45,7 @@ fn sent_ago(sequence: u64, age: Option<Duration>) -> PlanRequest {
 fn requests_older_than_their_deadline_are_answered_as_stale() {
     let prefix = Iceoryx2Prefix::new("stale");
     let planner = ZenohPlanner::start("stale", &["--iceoryx2", "--iceoryx2-prefix", prefix.as_str()]);
-    let zenoh = zenoh_vehicle(&planner);
+    let zenoh = planner.vehicle(None);
     let mut ask_zenoh = |request: &PlanRequest| -> PlanResponse {
         let replies = zenoh.ask_raw(&encode_bincode(request), WireFormat::Bincode, Duration::from_secs(5));
         assert_eq!(replies.len(), 1, "{}", planner.log());
@@ -127,18 +116,10 @@ fn stats_document(channel: &ZenohChannel) -> serde_json::Value {
     serde_json::from_slice(&sample.payload().to_bytes()).unwrap()
 }
 
-fn signal(pid: u32, name: &str) {
-    let status = std::process::Command::new("kill")
-        .args([&format!("-{name}"), &pid.to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(status.success(), "kill -{name} {pid}");
-}
-
 #[test]
 fn requests_that_waited_while_the_planner_was_stopped_come_back_stale() {
     let planner = ZenohPlanner::start("sigstop", &[]);
-    let vehicle = zenoh_vehicle(&planner);
+    let vehicle = planner.vehicle(None);
     let pid = planner.process.id();
     // One request every 50 ms, none waiting for its answer (a vehicle keeps perceiving).
     let mut sequence = 0;

@@ -23,12 +23,13 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use decision::{InterruptHandle, Planner, PlannerConfig};
-use hdrhistogram::Histogram;
 use protocol::{unix_now_ns, Layer, PlanRequest, PlanResponse, ResponseSigner, WireFormat, DEFAULT_DEADLINE};
-use serde::Serialize;
-use stats::{LayerCounts, Percentiles};
 
 use crate::fair_queue::{FairQueue, RateLimit, RateLimiter};
+
+mod statistics;
+use statistics::Counters;
+pub use statistics::{Stats, StatsSnapshot};
 
 /// Default queue places per worker. Solves take about a millisecond (p99 ~2 ms), so a full
 /// queue still drains well inside the 400 ms deadline, while bursts of simultaneous requests
@@ -108,102 +109,6 @@ struct JobState {
 impl JobState {
     fn take_reply(&self) -> Option<Reply> {
         self.reply.lock().unwrap_or_else(|e| e.into_inner()).take()
-    }
-}
-
-/// Counters of the service apart from the answers by layer.
-#[derive(Default)]
-struct Counters {
-    probes: u64,
-    overloaded: u64,
-    rate_limited: u64,
-    stale_in_queue: u64,
-    late_discarded: u64,
-}
-
-struct StatsInner {
-    by_layer: LayerCounts,
-    counters: Counters,
-    /// Arrival to answer, µs.
-    latency: Histogram<u64>,
-    /// Worker decision time, µs.
-    solve: Histogram<u64>,
-}
-
-/// Statistics of the service, shared by every thread.
-pub struct Stats {
-    started: Instant,
-    inner: Mutex<StatsInner>,
-}
-
-/// The JSON statistics document (published on `hmdp/planner/stats`).
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct StatsSnapshot {
-    pub uptime_s: f64,
-    /// Answers to requests (probes excluded).
-    pub answered: u64,
-    pub by_layer: LayerCounts,
-    /// Readiness probes answered (not counted in `answered` nor as rejections).
-    pub probes: u64,
-    /// Fallback answers given because the queue, or the vehicle's share of it, was full
-    /// (also counted in `watchdog_fallback`).
-    pub overloaded: u64,
-    /// Fallback answers given because the vehicle exceeded its rate limit (also counted in
-    /// `watchdog_fallback`).
-    pub rate_limited: u64,
-    /// Of the `stale_fallback` answers, those given when a worker took a request that had
-    /// become stale in the queue (the others: stale on arrival).
-    pub stale_in_queue: u64,
-    /// Worker results that arrived after the watchdog had answered.
-    pub late_discarded: u64,
-    /// Arrival to answer.
-    pub latency: Percentiles,
-    /// Worker decision time (excludes queueing).
-    pub solve: Percentiles,
-}
-
-impl Stats {
-    fn new() -> Self {
-        Self {
-            started: Instant::now(),
-            inner: Mutex::new(StatsInner {
-                by_layer: LayerCounts::default(),
-                counters: Counters::default(),
-                latency: stats::histogram(),
-                solve: stats::histogram(),
-            }),
-        }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, StatsInner> {
-        self.inner.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    fn record_answer(&self, response: &PlanResponse, arrival: Instant) {
-        let mut s = self.lock();
-        s.by_layer.add_response(response);
-        stats::record(&mut s.latency, arrival.elapsed());
-    }
-
-    fn record_solve(&self, took: Duration) {
-        stats::record(&mut self.lock().solve, took);
-    }
-
-    /// The current statistics.
-    pub fn snapshot(&self) -> StatsSnapshot {
-        let s = self.lock();
-        StatsSnapshot {
-            uptime_s: self.started.elapsed().as_secs_f64(),
-            answered: s.by_layer.total(),
-            by_layer: s.by_layer,
-            probes: s.counters.probes,
-            overloaded: s.counters.overloaded,
-            rate_limited: s.counters.rate_limited,
-            stale_in_queue: s.counters.stale_in_queue,
-            late_discarded: s.counters.late_discarded,
-            latency: Percentiles::of_histogram(&s.latency),
-            solve: Percentiles::of_histogram(&s.solve),
-        }
     }
 }
 
