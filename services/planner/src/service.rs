@@ -391,8 +391,15 @@ fn worker(
         }
     };
     let handle = planner.interrupt_handle();
+    let mut last_trim = Instant::now();
     loop {
         let Some(job) = queue.next() else { return };
+        // At most once a second: RSS follows what is live (a model larger than any before
+        // grows HiGHS's buffers; they are freed, but glibc keeps the pages).
+        if last_trim.elapsed() >= Duration::from_secs(1) {
+            supervise::release_free_memory();
+            last_trim = Instant::now();
+        }
         if job.abandoned.load(Ordering::SeqCst) {
             continue;
         }
