@@ -396,6 +396,10 @@ pub struct SolverSettings {
     /// layer (infeasible, bound reaching the incumbent, or an optimal integral / rounded
     /// plan). Exact either way; it saves HiGHS's per-MIP setup on most decisions.
     pub relaxation_first: bool,
+    /// With `relaxation_first`: LP runs a small best-first branch and bound over the
+    /// relaxation may spend before the layer goes to HiGHS's MIP (which costs a few ms of
+    /// root work however small the model). Exact either way; 1 = the root relaxation only.
+    pub branch_lps: usize,
     /// Tolerance when checking a plan against the exact constraints, m.
     pub feasibility_tolerance: f64,
     /// Further HiGHS options by name (`[solver.highs_options]`, e.g. `mip_detect_symmetry =
@@ -434,6 +438,7 @@ impl Default for SolverSettings {
             time_limit_s: 0.3,
             warm_start: true,
             relaxation_first: true,
+            branch_lps: 8,
             feasibility_tolerance: 1e-6,
             highs_options: std::collections::BTreeMap::new(),
         }

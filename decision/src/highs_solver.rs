@@ -29,14 +29,6 @@ pub struct MipModel {
 }
 
 impl MipModel {
-    /// Whether every integer column of `values` is within `tolerance` of an integer.
-    pub fn is_integral(&self, values: &[f64], tolerance: f64) -> bool {
-        self.integer
-            .iter()
-            .zip(values)
-            .all(|(&integer, &v)| !integer || (v - v.round()).abs() <= tolerance)
-    }
-
     pub fn add_col(&mut self, cost: f64, lower: f64, upper: f64, integer: bool) -> usize {
         self.col_cost.push(cost);
         self.col_lower.push(lower);
@@ -77,6 +69,23 @@ impl MipModel {
 
     pub fn num_integers(&self) -> usize {
         self.integer.iter().filter(|&&i| i).count()
+    }
+}
+
+/// Column bounds to solve a model within.
+#[derive(Debug, Clone, Copy)]
+pub struct Bounds<'a> {
+    pub lower: &'a [f64],
+    pub upper: &'a [f64],
+}
+
+impl<'a> Bounds<'a> {
+    /// The model's own bounds.
+    pub fn model(model: &'a MipModel) -> Self {
+        Self {
+            lower: &model.col_lower,
+            upper: &model.col_upper,
+        }
     }
 }
 
@@ -183,6 +192,8 @@ pub struct HighsSolver {
     ptr: *mut c_void,
     callback: Box<CallbackData>,
     next_id: u64,
+    /// Columns of the model passed last (what [`HighsSolver::resolve_within`] changes).
+    loaded_cols: Option<usize>,
 }
 
 fn check(call: &'static str, status: c_int) -> Result<(), SolverError> {
@@ -207,6 +218,7 @@ impl HighsSolver {
             ptr,
             callback,
             next_id: 1,
+            loaded_cols: None,
         };
         solver.set_bool("output_flag", false)?;
         solver.set_bool("log_to_console", false)?;
@@ -314,48 +326,69 @@ impl HighsSolver {
     /// be the obvious tool, but with HiGHS 1.16 a MIP solved from a user solution can report
     /// the improved objective while `Highs_getSolution` still returns the user's point.
     pub fn solve(&mut self, model: &MipModel, cutoff: Option<f64>) -> Result<MipResult, SolverError> {
-        self.solve_as(model, cutoff, false)
+        self.solve_as(model, cutoff)
     }
 
-    /// Solve the LP relaxation of `model` (every column continuous). HiGHS's LP clock runs on
-    /// across the runs of one instance, so an instance used for this needs no finite time
-    /// limit (an LP of these sizes ends in microseconds).
-    pub fn solve_relaxation(&mut self, model: &MipModel) -> Result<MipResult, SolverError> {
-        self.solve_as(model, None, true)
+    /// Load the LP relaxation of `model`, to be solved within changing column bounds by
+    /// [`Self::resolve_within`]. HiGHS keeps its basis between those runs, so a
+    /// branch-and-bound child (one bound changed) starts from its parent's optimum.
+    pub fn load_relaxation(&mut self, model: &MipModel) -> Result<(), SolverError> {
+        self.set_double("objective_bound", f64::INFINITY)?;
+        let integrality = vec![ffi::kHighsVarTypeContinuous; model.num_cols()];
+        self.pass(model, Bounds::model(model), &integrality)
     }
 
-    fn solve_as(&mut self, model: &MipModel, cutoff: Option<f64>, relax: bool) -> Result<MipResult, SolverError> {
+    /// Solve the loaded relaxation within `bounds` (one entry per column of the model that
+    /// [`Self::load_relaxation`] loaded last; this instance must not have solved another
+    /// model since).
+    pub fn resolve_within(&mut self, bounds: Bounds<'_>) -> Result<MipResult, SolverError> {
+        let n = bounds.lower.len();
+        assert!(
+            n == bounds.upper.len() && Some(n) == self.loaded_cols,
+            "bounds of the loaded model"
+        );
+        // SAFETY: the instance is live and holds a model of n columns; both arrays have n entries.
+        unsafe {
+            check(
+                "Highs_changeColsBoundsByRange",
+                ffi::Highs_changeColsBoundsByRange(
+                    self.ptr,
+                    0,
+                    n as c_int - 1,
+                    bounds.lower.as_ptr(),
+                    bounds.upper.as_ptr(),
+                ),
+            )?;
+        }
+        self.run_loaded(n)
+    }
+
+    fn solve_as(&mut self, model: &MipModel, cutoff: Option<f64>) -> Result<MipResult, SolverError> {
         self.set_double("objective_bound", cutoff.unwrap_or(f64::INFINITY))?;
-        let num_col = model.num_cols() as c_int;
-        let num_row = model.num_rows() as c_int;
         let integrality: Vec<c_int> = model
             .integer
             .iter()
             .map(|&i| {
-                if i && !relax {
+                if i {
                     ffi::kHighsVarTypeInteger
                 } else {
                     ffi::kHighsVarTypeContinuous
                 }
             })
             .collect();
+        self.pass(model, Bounds::model(model), &integrality)?;
         let solve_id = self.next_id;
         self.next_id += 1;
         self.callback.solve_id.store(solve_id, Ordering::SeqCst);
         let state = self.callback.state.clone();
         state.running.store(solve_id, Ordering::SeqCst);
-        let result = self.run(model, num_col, num_row, &integrality);
+        let result = self.run_loaded(model.num_cols());
         state.running.store(0, Ordering::SeqCst);
         result
     }
 
-    fn run(
-        &mut self,
-        model: &MipModel,
-        num_col: c_int,
-        num_row: c_int,
-        integrality: &[c_int],
-    ) -> Result<MipResult, SolverError> {
+    fn pass(&mut self, model: &MipModel, bounds: Bounds<'_>, integrality: &[c_int]) -> Result<(), SolverError> {
+        self.loaded_cols = Some(model.num_cols());
         // SAFETY: every array has the length HiGHS expects for the given counts and format
         // (checked by MipModel's construction); the instance is live.
         unsafe {
@@ -363,15 +396,15 @@ impl HighsSolver {
                 "Highs_passMip",
                 ffi::Highs_passMip(
                     self.ptr,
-                    num_col,
-                    num_row,
+                    model.num_cols() as c_int,
+                    model.num_rows() as c_int,
                     model.row_value.len() as c_int,
                     ffi::kHighsMatrixFormatRowwise,
                     ffi::kHighsObjSenseMinimize,
                     0.0,
                     model.col_cost.as_ptr(),
-                    model.col_lower.as_ptr(),
-                    model.col_upper.as_ptr(),
+                    bounds.lower.as_ptr(),
+                    bounds.upper.as_ptr(),
                     model.row_lower.as_ptr(),
                     model.row_upper.as_ptr(),
                     model.row_start.as_ptr(),
@@ -379,7 +412,14 @@ impl HighsSolver {
                     model.row_value.as_ptr(),
                     integrality.as_ptr(),
                 ),
-            )?;
+            )
+        }
+    }
+
+    /// Run the loaded model and collect its result.
+    fn run_loaded(&mut self, num_cols: usize) -> Result<MipResult, SolverError> {
+        // SAFETY: the instance is live and holds a model of `num_cols` columns.
+        unsafe {
             check("Highs_run", ffi::Highs_run(self.ptr))?;
             let status = match ffi::Highs_getModelStatus(self.ptr) {
                 s if s == ffi::kHighsModelStatusOptimal => MipStatus::Optimal,
@@ -396,7 +436,7 @@ impl HighsSolver {
             let key = CString::new("primal_solution_status").expect("no NUL");
             ffi::Highs_getIntInfoValue(self.ptr, key.as_ptr(), &mut primal_status);
             let columns = if primal_status == ffi::kHighsSolutionStatusFeasible {
-                let mut cols = vec![0.0; model.num_cols()];
+                let mut cols = vec![0.0; num_cols];
                 check(
                     "Highs_getSolution",
                     ffi::Highs_getSolution(
@@ -425,8 +465,8 @@ impl HighsSolver {
 }
 
 thread_local! {
-    /// This thread's LP instance (HiGHS keeps per-thread state): the exact evaluation's LPs
-    /// and the MILP's relaxations share it.
+    /// This thread's LP instance (HiGHS keeps per-thread state) for the exact evaluation's
+    /// LPs.
     static LP: std::cell::RefCell<Option<HighsSolver>> = const { std::cell::RefCell::new(None) };
 }
 

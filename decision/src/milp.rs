@@ -499,6 +499,7 @@ fn decode(problem: &Problem, cols: &Columns, values: &[f64]) -> (Vec<Action>, Ve
 }
 
 mod backend;
+mod branch;
 pub use backend::{LayerOutcome, MilpBackend};
 
 #[cfg(test)]
