@@ -298,13 +298,22 @@ pub struct CostWeights {
     pub w_global: f64,
     /// `w_sigma` of a lane change, added to the longitudinal part.
     pub w_lane_change: f64,
-    /// `w_sigma` of the next longitudinal state `[decelerate, cruise, accelerate]`.
+    /// `w_sigma` of the next longitudinal state `[decelerate, cruise, accelerate]`, per step.
+    ///
+    /// `formulation.md` has `[2, 0, 1]`. The brake state's per-step price, beside a linear
+    /// price on the braking itself, made the shortest brake the cheapest: the ego cruised at
+    /// the band's edge (-0.3 m/s^2) and braked in short -2 m/s^2 kicks, two switches each.
+    /// At 1 it follows a slowing leader in longer, gentler brakes: about 11 % fewer switches
+    /// on both seeds (`docs/formulation-notes.md`). The accelerate state keeps its price: at
+    /// 0 the ego is 0.9 m/s faster, but it also speeds up to each new leader (Case 2: three
+    /// switches instead of one).
     pub w_beta: [f64; 3],
     /// `w_v`, per m/s of `|v_des - v_h|` per step.
     ///
     /// `formulation.md` suggests 0.5, but with `a_acc T_h = 0.6 m/s` one accelerating step
-    /// gains at most `0.5 * 0.6 * 3 = 0.9 < w_beta[+1] = 1`, so a slow ego would never speed up.
-    /// At 1.0 a single accelerating step pays (`1.8 > 1`); see `docs/formulation-notes.md`.
+    /// gains at most `0.5 * 0.6 * 3 = 0.9`, less than its `w_beta[+1] = 1` there, so a slow
+    /// ego would never speed up. At 1.0 a single accelerating step pays (`1.8 > 1`); see
+    /// `docs/formulation-notes.md`.
     pub w_speed: f64,
     /// Extra weight on `|v_des - v_H|` at the horizon's end, per m/s: a speed deficit there
     /// persists beyond the horizon (a cost-to-go), which three steps of `w_speed` do not see.
@@ -335,7 +344,7 @@ impl Default for CostWeights {
             w_slack: 1.5,
             w_global: 1.0e4,
             w_lane_change: 4.0,
-            w_beta: [2.0, 0.0, 1.0],
+            w_beta: [1.0, 0.0, 1.0],
             w_speed: 1.0,
             w_speed_terminal: 4.0,
             w_lane_speed: 3.0,
