@@ -333,15 +333,20 @@ impl HighsSolver {
     /// [`Self::resolve_within`]. HiGHS keeps its basis between those runs, so a
     /// branch-and-bound child (one bound changed) starts from its parent's optimum.
     pub fn load_relaxation(&mut self, model: &MipModel) -> Result<(), SolverError> {
-        self.set_double("objective_bound", f64::INFINITY)?;
         let integrality = vec![ffi::kHighsVarTypeContinuous; model.num_cols()];
         self.pass(model, Bounds::model(model), &integrality)
     }
 
     /// Solve the loaded relaxation within `bounds` (one entry per column of the model that
     /// [`Self::load_relaxation`] loaded last; this instance must not have solved another
-    /// model since).
-    pub fn resolve_within(&mut self, bounds: Bounds<'_>) -> Result<MipResult, SolverError> {
+    /// model since). With `objective_bound`, a relaxation whose optimum cannot come below it
+    /// may stop early and report `Infeasible`.
+    pub fn resolve_within(
+        &mut self,
+        bounds: Bounds<'_>,
+        objective_bound: Option<f64>,
+    ) -> Result<MipResult, SolverError> {
+        self.set_double("objective_bound", objective_bound.unwrap_or(f64::INFINITY))?;
         let n = bounds.lower.len();
         assert!(
             n == bounds.upper.len() && Some(n) == self.loaded_cols,
@@ -423,7 +428,11 @@ impl HighsSolver {
             check("Highs_run", ffi::Highs_run(self.ptr))?;
             let status = match ffi::Highs_getModelStatus(self.ptr) {
                 s if s == ffi::kHighsModelStatusOptimal => MipStatus::Optimal,
-                s if s == ffi::kHighsModelStatusInfeasible => MipStatus::Infeasible,
+                // With an objective bound, "nothing below it" (the dual simplex stops once its
+                // objective, a lower bound, passes the bound).
+                s if s == ffi::kHighsModelStatusInfeasible || s == ffi::kHighsModelStatusObjectiveBound => {
+                    MipStatus::Infeasible
+                }
                 s if s == ffi::kHighsModelStatusTimeLimit
                     || s == ffi::kHighsModelStatusInterrupt
                     || s == ffi::kHighsModelStatusHighsInterrupt =>

@@ -1,7 +1,7 @@
 //! The MILP backend: the warm candidates, the LP relaxation and its small branch and bound
 //! that settle most layers (`branch.rs`), and the HiGHS MIP run for the rest.
 
-use super::branch::{self, Settled};
+use super::branch::{self, Settled, WarmStart};
 use super::{build, decode};
 use crate::config::SolverSettings;
 use crate::error::SolverError;
@@ -95,15 +95,12 @@ impl MilpBackend {
         let cutoff_of = |e: &Evaluation| e.cost + 1e-6 + 1e-9 * e.cost.abs();
         let cutoff = incumbent.as_ref().map(cutoff_of);
         let (settled, _lps) = if self.relaxation_first {
-            let (settled, size) = branch::settle(
-                &mut self.tree_lp,
-                problem,
-                mode,
-                &built,
-                cutoff,
+            let start = WarmStart {
                 incumbent,
-                self.branch_lps,
-            )?;
+                cutoff,
+                scored: warm,
+            };
+            let (settled, size) = branch::settle(&mut self.tree_lp, problem, mode, &built, start, self.branch_lps)?;
             (settled, size.lps)
         } else {
             (Settled::Open(incumbent), 0)

@@ -30,6 +30,14 @@ pub(super) enum Settled {
     Open(Option<Evaluation>),
 }
 
+/// What is known before the tree: the best warm candidate, the cutoff its cost sets (plans
+/// must beat it) and the sequences already scored exactly.
+pub(super) struct WarmStart<'a> {
+    pub incumbent: Option<Evaluation>,
+    pub cutoff: Option<f64>,
+    pub scored: &'a [Vec<Action>],
+}
+
 /// LP runs the tree made (the root included).
 pub(super) struct TreeSize {
     pub lps: usize,
@@ -61,20 +69,19 @@ fn branching_column(model: &MipModel, values: &[f64]) -> Option<usize> {
 /// Settle a layer by branch and bound over its relaxation, within `max_lps` LP runs on `lp`
 /// (an instance of its own: the nodes' LPs keep their basis there between runs, while the
 /// exact evaluation of a rounded plan runs on the thread's LP instance).
-/// `incumbent` is the best known plan (its exact cost); `cutoff`, when given, excludes plans
-/// that do not beat it.
 pub(super) fn settle(
     lp: &mut HighsSolver,
     problem: &Problem,
     mode: Mode,
     built: &(MipModel, Columns),
-    cutoff: Option<f64>,
-    incumbent: Option<Evaluation>,
+    warm: WarmStart<'_>,
     max_lps: usize,
 ) -> Result<(Settled, TreeSize), SolverError> {
     let (model, cols) = built;
-    let mut best = incumbent;
-    let mut scored: Vec<Vec<Action>> = Vec::new();
+    let cutoff = warm.cutoff;
+    let mut best = warm.incumbent;
+    // Sequences already scored exactly (the warm candidates, then the nodes' roundings).
+    let mut scored: Vec<Vec<Action>> = warm.scored.to_vec();
     let mut open = vec![Node {
         bound: f64::NEG_INFINITY,
         lower: model.col_lower.clone(),
@@ -96,7 +103,8 @@ pub(super) fn settle(
             lower: &node.lower,
             upper: &node.upper,
         };
-        let relaxed = lp.resolve_within(bounds)?;
+        // A node that cannot beat the best plan may stop early: it is pruned either way.
+        let relaxed = lp.resolve_within(bounds, target(&best))?;
         lps += 1;
         let (bound, values) = match (relaxed.status, relaxed.columns) {
             (MipStatus::Infeasible, _) => continue,
