@@ -46,6 +46,7 @@ impl PlanChannel for InProcessChannel {
             extra_responses: 0,
             refused: Vec::new(),
             retries: 0,
+            mismatched: 0,
         })
     }
 

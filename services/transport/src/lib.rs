@@ -71,6 +71,10 @@ pub struct Answer {
     /// Times the request was sent again to another planner instance (Zenoh failover, 0 or
     /// 1); the retried instance's answers are discarded once one is taken.
     pub retries: usize,
+    /// Answers that reached this channel for another request and were discarded (iceoryx2:
+    /// tagged for another client or exchange, or with another vehicle id or sequence); 0
+    /// with a correct planner.
+    pub mismatched: usize,
 }
 
 /// A request/answer channel to a planner: one request at a time.

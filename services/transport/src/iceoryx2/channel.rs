@@ -50,6 +50,7 @@ impl PlanChannel for Iceoryx2Channel {
             extra_responses: exchange.extra_responses,
             refused: exchange.refused,
             retries: 0,
+            mismatched: exchange.mismatched,
         })
     }
 

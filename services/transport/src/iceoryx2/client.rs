@@ -6,13 +6,14 @@ use iceoryx2::port::client::Client as RawClient;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
+use iceoryx2::service::builder::request_response::RequestResponseOpenError;
 use iceoryx2::service::port_factory::{event, request_response};
 use protocol::{
     PlanRequest, PlanResponse, ResponseVerifier, VerifyError, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE,
     ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE, ICEORYX2_PLAN_SERVICE,
 };
 
-use super::{node, receive, send, service_name, setup, Ipc, TransportError, WaitMode};
+use super::{node, receive, send, service_name, setup, ExchangeTag, Ipc, TransportError, WaitMode};
 
 /// Settings of a [`Client`].
 #[derive(Debug, Clone)]
@@ -50,8 +51,9 @@ pub struct Exchange {
     /// Answers beyond the first (the protocol allows exactly one: always 0 with a correct
     /// planner).
     pub extra_responses: usize,
-    /// Answers that carried another vehicle id or sequence than the request's: never taken
-    /// as the answer (0 with a correct planner).
+    /// Answers that reached this client for another request (tagged for another client or
+    /// exchange, or carrying another vehicle id or sequence than the request's): never taken
+    /// as the answer, 0 with a correct planner.
     pub mismatched: usize,
     /// Planners connected when the request was sent (0: nobody serves, the request went
     /// nowhere and the call returned at once).
@@ -63,11 +65,15 @@ pub struct Exchange {
 /// A vehicle's connection to the planner over iceoryx2. Not for sharing between threads:
 /// one per vehicle thread.
 pub struct Client {
-    port: RawClient<Ipc, PlanRequest, (), PlanResponse, ()>,
+    port: RawClient<Ipc, PlanRequest, ExchangeTag, PlanResponse, ExchangeTag>,
+    /// This port's id, as the planner tags its answers.
+    id: u128,
+    /// Requests sent so far (the last one's [`ExchangeTag::exchange`]).
+    exchanges: u64,
     requests: Notifier<Ipc>,
     responses: Listener<Ipc>,
     // The ports borrow nothing, but the services and the node must outlive them.
-    _plan_service: request_response::PortFactory<Ipc, PlanRequest, (), PlanResponse, ()>,
+    _plan_service: request_response::PortFactory<Ipc, PlanRequest, ExchangeTag, PlanResponse, ExchangeTag>,
     _event_services: [event::PortFactory<Ipc>; 2],
     _node: Node<Ipc>,
     wait: WaitMode,
@@ -85,9 +91,16 @@ impl Client {
             match node
                 .service_builder(&service_name(ICEORYX2_PLAN_SERVICE)?)
                 .request_response::<PlanRequest, PlanResponse>()
+                .request_user_header::<ExchangeTag>()
+                .response_user_header::<ExchangeTag>()
                 .open()
             {
                 Ok(s) => break s,
+                Err(RequestResponseOpenError::IncompatibleRequestOrResponseType) => {
+                    return Err(TransportError::Incompatible {
+                        service: ICEORYX2_PLAN_SERVICE,
+                    })
+                }
                 Err(e) if Instant::now() >= give_up => {
                     tracing::debug!("opening {ICEORYX2_PLAN_SERVICE}: {e}");
                     return Err(TransportError::NoService {
@@ -121,6 +134,8 @@ impl Client {
             .create()
             .map_err(setup("response listener"))?;
         Ok(Self {
+            id: port.id().value(),
+            exchanges: 0,
             port,
             requests,
             responses,
@@ -134,12 +149,19 @@ impl Client {
 
     /// Sends `request` (written straight into shared memory) and waits up to `wait` for the
     /// answer. A late answer to an earlier request is never taken for this one, nor an answer
-    /// whose vehicle id and sequence are not the request's (counted in `mismatched`), nor,
-    /// with a key, one that does not verify (in `refused`).
+    /// tagged for another client or exchange or whose vehicle id and sequence are not the
+    /// request's (counted in `mismatched`), nor, with a key, one that does not verify (in
+    /// `refused`).
     pub fn request(&mut self, request: PlanRequest, wait: Duration) -> Result<Exchange, TransportError> {
         let deadline = Instant::now() + wait;
         let expected = (request.vehicle_id, request.sequence);
-        let slot = self.port.loan_uninit().map_err(send("loaning a request"))?;
+        self.exchanges += 1;
+        let tag = ExchangeTag {
+            client: self.id,
+            exchange: self.exchanges,
+        };
+        let mut slot = self.port.loan_uninit().map_err(send("loaning a request"))?;
+        *slot.user_header_mut() = tag;
         let pending = slot.write_payload(request).send().map_err(send("request"))?;
         let servers = pending.number_of_server_connections();
         let mut exchange = Exchange {
@@ -159,9 +181,19 @@ impl Client {
         };
         loop {
             while let Some(sample) = pending.receive().map_err(receive("response"))? {
+                let answers_to = *sample.user_header();
                 let response = sample.payload().clone();
                 drop(sample);
-                if (response.vehicle_id, response.sequence) != expected {
+                if answers_to != tag {
+                    tracing::warn!(
+                        expected = ?tag,
+                        got = ?answers_to,
+                        vehicle = response.vehicle_id,
+                        sequence = response.sequence,
+                        "an answer tagged for another client or request: ignored"
+                    );
+                    exchange.mismatched += 1;
+                } else if (response.vehicle_id, response.sequence) != expected {
                     tracing::warn!(
                         expected = ?expected,
                         got = ?(response.vehicle_id, response.sequence),

@@ -10,6 +10,12 @@
 //! * Threads: the `ipc_threadsafe` service variant, so that an answer can be sent from the
 //!   thread that produced it (a solver worker or the watchdog) while the server thread keeps
 //!   receiving.
+//! * Addressing: every request and answer carries an [`ExchangeTag`] (the iceoryx2 user
+//!   header). iceoryx2 0.10 sends an answer through the connection slot its request came in
+//!   on, and gives a killed client's slot to the next client that opens the service: without
+//!   more, a late answer to a killed vehicle can reach a new one. The server therefore
+//!   answers only clients that are still there, and a client takes only answers tagged with
+//!   its own port id and exchange number.
 //! * Crashes: a process killed with SIGKILL leaves its node's shared memory behind; both sides
 //!   remove dead nodes' resources when they start (see [`dead_nodes`]).
 
@@ -28,6 +34,21 @@ use thiserror::Error;
 
 /// The iceoryx2 service variant of every port here.
 pub type Ipc = ipc_threadsafe::Service;
+
+/// The iceoryx2 user header of every request and answer: which client port sent the request
+/// and which of its exchanges it is. The client writes its own port id and a counter; the
+/// server answers with the port id iceoryx2 itself names as the request's origin and the
+/// echoed counter; the client takes nothing that does not carry both of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("hmdp::ExchangeTag/v1")]
+pub struct ExchangeTag {
+    /// The client port's `UniqueClientId` (system-wide unique: process id, monotonic time
+    /// and a counter).
+    pub client: u128,
+    /// The client's count of its requests, from 1.
+    pub exchange: u64,
+}
 
 /// iceoryx2's own error of a failed call, kept as the source.
 pub type Cause = Box<dyn std::error::Error + Send + Sync>;
@@ -53,6 +74,16 @@ pub enum TransportError {
     /// The planner's service does not exist (no planner running under this prefix).
     #[error("no planner service `{service}` (is `planner serve --iceoryx2` running with the same prefix?)")]
     NoService { service: &'static str },
+    /// The planner's service exists with other message types (another release of the
+    /// planner serves this prefix).
+    #[error(
+        "the planner service `{service}` has other message types (a planner of another release serves this prefix)"
+    )]
+    Incompatible { service: &'static str },
+    /// The client that sent the request is gone (killed, or its port closed): the answer is
+    /// not sent, since its connection slot may already belong to another client.
+    #[error("the requesting client is gone: answer not sent")]
+    ClientGone,
     /// Sending a request or a response, or notifying its event, failed.
     #[error("iceoryx2 send ({what})")]
     Send {

@@ -8,12 +8,14 @@ use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::server::Server;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::request_response;
 use protocol::{
     PlanRequest, PlanResponse, ICEORYX2_PLAN_REQUEST_EVENT_SERVICE, ICEORYX2_PLAN_RESPONSE_EVENT_SERVICE,
     ICEORYX2_PLAN_SERVICE,
 };
 
-use super::{node, send, service_name, setup, Ipc, TransportError};
+use super::{node, send, service_name, setup, ExchangeTag, Ipc, TransportError};
 
 /// Settings of the planner's iceoryx2 endpoint.
 #[derive(Debug, Clone)]
@@ -55,11 +57,39 @@ impl Default for ServerOptions {
 /// requests whose answer it gave up on.
 const MAX_ACTIVE_REQUESTS_PER_CLIENT: usize = 4;
 
+/// The planner's request-response service with its message types.
+type PlanService = request_response::PortFactory<Ipc, PlanRequest, ExchangeTag, PlanResponse, ExchangeTag>;
+
+/// What every [`Responder`] shares: the service (to see which clients are there) and the
+/// notifier that wakes the clients.
+struct Answering {
+    service: PlanService,
+    notifier: Notifier<Ipc>,
+}
+
+impl Answering {
+    /// Whether the client port `origin` is still registered with the service. A killed
+    /// client's port stays registered until its dead node is removed; only then can another
+    /// client take its connection slot.
+    fn has_client(&self, origin: u128) -> bool {
+        let mut found = false;
+        self.service.dynamic_config().list_clients(|client| {
+            if client.client_id.value() == origin {
+                found = true;
+                CallbackProgression::Stop
+            } else {
+                CallbackProgression::Continue
+            }
+        });
+        found
+    }
+}
+
 /// The right to answer one request, exactly once. `Send`: it can move to the thread that
 /// computes the answer.
 pub struct Responder {
-    request: ActiveRequest<Ipc, PlanRequest, (), PlanResponse, ()>,
-    notifier: Arc<Notifier<Ipc>>,
+    request: ActiveRequest<Ipc, PlanRequest, ExchangeTag, PlanResponse, ExchangeTag>,
+    answering: Arc<Answering>,
 }
 
 impl Responder {
@@ -68,15 +98,29 @@ impl Responder {
         self.request.payload()
     }
 
-    /// Writes the answer into shared memory, sends it and wakes the clients. Fails when the
-    /// client is gone (it died or stopped waiting).
+    /// Writes the answer into shared memory, tagged for the requesting client, sends it and
+    /// wakes the clients. Fails when the client is gone ([`TransportError::ClientGone`]) or
+    /// the send fails.
     pub fn respond(self, response: PlanResponse) -> Result<(), TransportError> {
-        let Responder { request, notifier } = self;
-        let slot = request.loan_uninit().map_err(send("loaning a response"))?;
+        let Responder { request, answering } = self;
+        let origin = request.origin().value();
+        // iceoryx2 0.10 sends an answer through the connection slot its request came in on,
+        // and a killed client's slot goes to the next client that opens the service: an
+        // answer to a client that is gone could reach that one. (Between this look and the
+        // send a few microseconds remain; the client's tag check covers them.)
+        if !answering.has_client(origin) {
+            return Err(TransportError::ClientGone);
+        }
+        let tag = ExchangeTag {
+            client: origin,
+            exchange: request.user_header().exchange,
+        };
+        let mut slot = request.loan_uninit().map_err(send("loaning a response"))?;
+        *slot.user_header_mut() = tag;
         slot.write_payload(response).send().map_err(send("response"))?;
         // Dropping the active request ends the response stream before the clients wake.
         drop(request);
-        notifier.notify().map_err(send("response event"))?;
+        answering.notifier.notify().map_err(send("response event"))?;
         Ok(())
     }
 }
@@ -95,6 +139,8 @@ pub fn serve(
     let service = node
         .service_builder(&service_name(ICEORYX2_PLAN_SERVICE)?)
         .request_response::<PlanRequest, PlanResponse>()
+        .request_user_header::<ExchangeTag>()
+        .response_user_header::<ExchangeTag>()
         // One planner per prefix: with two servers every request would get two answers.
         .max_servers(1)
         .max_clients(max_clients)
@@ -123,27 +169,29 @@ pub fn serve(
         .listener_builder()
         .create()
         .map_err(setup("request listener"))?;
-    let notifier = Arc::new(
-        responses_event
-            .notifier_builder()
-            .create()
-            .map_err(setup("response notifier"))?,
-    );
+    let notifier = responses_event
+        .notifier_builder()
+        .create()
+        .map_err(setup("response notifier"))?;
     let server = service
         .server_builder()
         .create()
         .map_err(setup("server port (is another planner serving this prefix?)"))?;
+    let answering = Arc::new(Answering { service, notifier });
     tracing::info!(service = ICEORYX2_PLAN_SERVICE, "planner serving over iceoryx2");
-    receive_until(&server, &listener, &notifier, options, shutdown, &mut handler);
+    receive_until(&server, &listener, &answering, options, shutdown, &mut handler);
+    // The port before the service it belongs to (answers still being computed keep the
+    // service until they are sent).
+    drop(server);
     tracing::info!("iceoryx2 server stopped");
     Ok(())
 }
 
 /// The server thread's loop: wait (or spin) for requests, hand each to `handler`.
 fn receive_until(
-    server: &Server<Ipc, PlanRequest, (), PlanResponse, ()>,
+    server: &Server<Ipc, PlanRequest, ExchangeTag, PlanResponse, ExchangeTag>,
     listener: &Listener<Ipc>,
-    notifier: &Arc<Notifier<Ipc>>,
+    answering: &Arc<Answering>,
     options: &ServerOptions,
     shutdown: &AtomicBool,
     handler: &mut impl FnMut(Responder),
@@ -167,7 +215,7 @@ fn receive_until(
                     last_request = Instant::now();
                     handler(Responder {
                         request,
-                        notifier: Arc::clone(notifier),
+                        answering: Arc::clone(answering),
                     })
                 }
                 Ok(None) => break,

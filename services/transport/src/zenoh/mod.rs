@@ -46,6 +46,7 @@ pub fn config(mode: Mode, file: Option<&Path>, listen: &[String], connect: &[Str
             .expect("an object")
             .extend(hardening().as_object().expect("an object").clone());
         json["transport"]["link"]["tx"] = lease();
+        json["transport"]["unicast"] = accept();
         return Config::from_json5(&json.to_string()).map_err(|source| ChannelError::ZenohConfig {
             what: "built-in".into(),
             source,
@@ -87,6 +88,30 @@ pub fn reconnect() -> serde_json::Value {
 pub fn lease() -> serde_json::Value {
     serde_json::json!({ "lease": 3000, "keep_alive": 4 })
 }
+
+/// How a session that listens admits new connections (`transport/unicast`): up to 1000
+/// connections may be in Zenoh's session handshake at once (`accept_pending`, Zenoh's
+/// default 100), each for at most 2 s (`accept_timeout`, default 10 s). Beyond
+/// `accept_pending` Zenoh closes every new connection at once, so with the defaults 100 idle
+/// TCP sockets (or 10 new silent ones a second) kept every new vehicle out. The limit is far above
+/// what a fleet opens at once; 2 s is ample for the handshake's two round trips. Set in the
+/// built-in configurations and every shipped file of a process that listens or may listen
+/// (the routers, the planners; docs/deploy.md, "Connection floods").
+pub fn accept() -> serde_json::Value {
+    serde_json::json!({ "accept_timeout": ACCEPT_TIMEOUT_MS, "accept_pending": ACCEPT_PENDING })
+}
+
+/// `transport/unicast/accept_timeout`, ms (see [`accept`]).
+pub const ACCEPT_TIMEOUT_MS: u64 = 2000;
+
+/// `transport/unicast/accept_pending` (see [`accept`]).
+pub const ACCEPT_PENDING: usize = 1000;
+
+/// How long a TLS listener waits for a connection's TLS handshake, ms (Zenoh's default
+/// 10 s): a connection that never completes it holds a socket no longer than this. Zenoh
+/// takes it from the listen endpoint (`tls/HOST:PORT#tls_handshake_timeout_ms=5000`), as in
+/// `deploy/zenoh/router-tls.json5`.
+pub const TLS_HANDSHAKE_TIMEOUT_MS: u64 = 5000;
 
 /// Largest Zenoh message any session of the project accepts (a request is at most a few
 /// KiB, see docs/protocol.md). Zenoh's own default is 1 GiB: a peer could make the planner
@@ -259,21 +284,78 @@ mod tests {
         }
     }
 
+    /// The admission limits of a session that listens (a flood of idle or junk connections
+    /// must not keep vehicles out).
+    fn assert_accepts_under_floods(config: &Config, what: &str) {
+        for (key, want) in accept().as_object().unwrap() {
+            let got = config.get_json(&format!("transport/unicast/{key}")).unwrap();
+            assert_eq!(got, want.to_string(), "{what}: transport/unicast/{key}");
+        }
+    }
+
+    #[test]
+    fn built_in_configurations_accept_under_floods() {
+        for mode in [Mode::Peer, Mode::Client] {
+            let config = config(mode, None, &["tcp/127.0.0.1:7447".into()], &[]).unwrap();
+            assert_accepts_under_floods(&config, &format!("{mode:?}"));
+        }
+    }
+
+    /// The endpoints under `key` (`listen/endpoints`, ...) for the configuration's own mode
+    /// (Zenoh's defaults depend on the mode).
+    fn endpoints(config: &Config, key: &str) -> Vec<String> {
+        let value: serde_json::Value = serde_json::from_str(&config.get_json(key).unwrap()).unwrap();
+        let mode: serde_json::Value = serde_json::from_str(&config.get_json("mode").unwrap()).unwrap();
+        let list = match &value {
+            serde_json::Value::Object(by_mode) => by_mode.get(mode.as_str().unwrap_or("peer")),
+            other => Some(other),
+        };
+        list.and_then(|l| l.as_array())
+            .map(|l| l.iter().filter_map(|e| e.as_str().map(str::to_owned)).collect())
+            .unwrap_or_default()
+    }
+
+    /// A TLS listener's handshake timeout (Zenoh's default: 10 s), set in its endpoint.
+    fn assert_tls_handshake_bounded(endpoints: &[String], what: &str) {
+        for endpoint in endpoints {
+            if endpoint.starts_with("tls/") {
+                assert!(
+                    endpoint.contains(&format!("#tls_handshake_timeout_ms={TLS_HANDSHAKE_TIMEOUT_MS}")),
+                    "{what}: {endpoint} without tls_handshake_timeout_ms={TLS_HANDSHAKE_TIMEOUT_MS}"
+                );
+            }
+        }
+    }
+
+    /// Set at build time by `.cargo/config.toml` for zenoh-link-tls and zenoh-link-tcp
+    /// (docs/deploy.md, "Connection floods"); read here from the same build environment.
+    #[test]
+    fn flood_settings_are_set_for_the_build() {
+        assert_eq!(option_env!("TLS_ACCEPT_THROTTLE_TIME"), Some("1000"));
+        assert_eq!(option_env!("TCP_LINGER_TIMEOUT"), Some("0"));
+    }
+
     #[test]
     fn every_shipped_configuration_is_hardened() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy/zenoh");
-        let (mut checked, mut connecting, mut planners) = (0, 0, 0);
+        let (mut checked, mut connecting, mut planners, mut admitting) = (0, 0, 0, 0);
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "json5") {
                 let config = Config::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert_hardened(&config, &path.display().to_string());
-                if path
+                let planner = path
                     .file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with("planner"))
-                {
+                    .is_some_and(|n| n.to_string_lossy().starts_with("planner"));
+                if planner {
                     assert_short_lease(&config, &path.display().to_string());
                     planners += 1;
+                }
+                let listen = endpoints(&config, "listen/endpoints");
+                if planner || !listen.is_empty() {
+                    assert_accepts_under_floods(&config, &path.display().to_string());
+                    assert_tls_handshake_bounded(&listen, &path.display().to_string());
+                    admitting += 1;
                 }
                 let endpoints: serde_json::Value =
                     serde_json::from_str(&config.get_json("connect/endpoints").unwrap()).unwrap();
@@ -287,5 +369,6 @@ mod tests {
         assert!(checked >= 6, "only {checked} files in {}", dir.display());
         assert!(connecting >= 4, "only {connecting} files connect");
         assert_eq!(planners, 2, "planner.json5 and planner-tls.json5");
+        assert_eq!(admitting, 4, "the routers and the planners");
     }
 }
