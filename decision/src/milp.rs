@@ -9,6 +9,8 @@
 //! - [`Builder::transition_rows`]: one-hots linked to the previous step by transition flows
 //!   whose up / down parts are the actions (a network flow: its LP relaxation is tight), so
 //!   `clip` is implicit (values outside the one-hots do not exist);
+//! - [`Builder::lane_change_rows`]: a plan targets at most one lane the ego does not occupy
+//!   now, and none while a lane change is under way (`model::new_lanes_allowed`);
 //! - [`Builder::input_rows`]: `u[s]` inside the range of the state it is in;
 //! - [`Builder::speed_rows`]: `0 <= v[s] <= v_cap`, `dev[s] >= |v_des - v[s]|`, and the braking
 //!   auxiliaries; position and speed are affine in `u` and substituted, not columns;
@@ -106,6 +108,8 @@ struct Columns {
     firm_brake: Vec<usize>,
     /// Occupancy column per step and lane, when some row needs it.
     occ: Vec<Vec<Option<usize>>>,
+    /// `(lane index, column)`: whether the plan visits a lane the ego does not occupy now.
+    seen: Vec<(usize, usize)>,
     /// Hysteresis and global slack per `[sv * H + s]`.
     hys: Vec<Option<usize>>,
     glob: Vec<Option<usize>>,
@@ -284,6 +288,36 @@ impl<'p> Builder<'p> {
     }
 
     /// `sum_j lo(j) b[s][j] <= u[s] <= sum_j hi(j) b[s][j]`.
+    /// At most `new_lanes_allowed` lanes outside the ones the ego occupies now are visited:
+    /// `seen[l] >= z[s][l]` for every step, `sum_l seen[l] <= allowed` (none: the one-hots of
+    /// those lanes are fixed off).
+    fn lane_change_rows(&mut self) {
+        let p = self.problem;
+        let allowed = crate::model::new_lanes_allowed(p.ego.occupancy);
+        let new_lanes: Vec<usize> = (1..=p.lanes)
+            .filter(|&l| !p.ego.occupancy.contains(l))
+            .map(|l| (l - 1) as usize)
+            .collect();
+        if allowed == 0 {
+            for s in 0..p.horizon {
+                for &l in &new_lanes {
+                    self.m.col_upper[self.cols.lane[s][l]] = 0.0;
+                }
+            }
+            return;
+        }
+        let mut seen_any = Expr::default();
+        for &l in &new_lanes {
+            let seen = self.m.add_col(0.0, 0.0, 1.0, false);
+            self.cols.seen.push((l, seen));
+            for s in 0..p.horizon {
+                self.at_least(Expr::default().term(seen, 1.0).term(self.cols.lane[s][l], -1.0), 0.0);
+            }
+            seen_any = seen_any.term(seen, 1.0);
+        }
+        self.row(f64::NEG_INFINITY, seen_any, allowed as f64);
+    }
+
     fn input_rows(&mut self) {
         let kin = self.problem.kin;
         for s in 0..self.problem.horizon {
@@ -466,6 +500,7 @@ fn build(problem: &Problem, mode: Mode) -> Result<(MipModel, Columns), Infeasibl
     b.step_columns();
     b.action_rows();
     b.transition_rows();
+    b.lane_change_rows();
     b.input_rows();
     b.speed_rows();
     b.safety_rows()?;

@@ -136,6 +136,10 @@ fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize
         let (from, to) = (state(f.chain, f.step.checked_sub(1)), state(f.chain, Some(f.step)));
         x[f.col] = f64::from(u8::from(from == f.from && to == f.to));
     }
+    for &(l, col) in &cols.seen {
+        let lane = (l + 1) as u8;
+        x[col] = f64::from(u8::from(r.maneuvers.iter().any(|m| m.lane == lane)));
+    }
     for (idx, col) in cols.hys.iter().enumerate() {
         if let Some(col) = *col {
             x[col] = e.hysteresis_slack[idx];

@@ -189,8 +189,15 @@ pub fn rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, actions: &[Action]
         occupancy: Vec::with_capacity(h),
     };
     let (mut m, mut x, mut v, mut occ) = (start.maneuver, start.x, start.v, start.occupancy);
+    let mut new_lanes = 0;
     for &d in actions {
         m = transition(m, d, lanes)?;
+        if !occ.contains(m.lane) {
+            new_lanes += 1;
+        }
+        if new_lanes > new_lanes_allowed(start.occupancy) {
+            return None;
+        }
         let a = kin.accel_of(m.beta);
         (x, v) = kin.step_with(x, v, a);
         occ = occ.with(m.lane);
@@ -201,6 +208,16 @@ pub fn rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, actions: &[Action]
         out.occupancy.push(occ);
     }
     Some(out)
+}
+
+/// How many lanes the ego does not occupy now a plan may target: one from a lane centre,
+/// none while a lane change is under way (its body spans two lanes). A lane change outlasts
+/// the horizon, so a plan may change lanes once, or abort a change under way back into a lane
+/// the ego still occupies, but never retarget a change to a further lane: sweeping across
+/// lanes one decision after another put the ego beside traffic it had checked only for the
+/// lane it was leaving.
+pub fn new_lanes_allowed(occupancy: LaneSet) -> usize {
+    usize::from(occupancy.iter().count() == 1)
 }
 
 /// Every `clip`-admissible action sequence of length `horizon`, in lexicographic order of
@@ -340,6 +357,44 @@ mod tests {
         let (x, v) = kin.step(0.0, 10.0, -1);
         assert!((x - (4.0 - 0.24)).abs() < 1e-12);
         assert!((v - 8.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_plan_changes_lanes_once_and_never_retargets_a_change_under_way() {
+        let kin = Kinematics {
+            dt: 0.4,
+            accel: [-3.0, 0.0, 1.5],
+            bounds: [(-3.0, -3.0), (0.0, 0.0), (1.5, 1.5)],
+        };
+        let (left, right) = (
+            Action {
+                lateral: -1,
+                longitudinal: 0,
+            },
+            Action {
+                lateral: 1,
+                longitudinal: 0,
+            },
+        );
+        let keep = Action::KEEP;
+        let at = |lane: u8, occupancy: LaneSet| EgoStart {
+            maneuver: m(lane, 0),
+            x: 0.0,
+            v: 10.0,
+            occupancy,
+        };
+        // From a lane centre: one change, and back, but not a second lane further.
+        let centred = at(2, LaneSet::single(2));
+        assert!(rollout(&kin, 4, &centred, &[left, keep, keep]).is_some());
+        assert!(rollout(&kin, 4, &centred, &[left, right, keep]).is_some());
+        assert!(rollout(&kin, 4, &centred, &[left, left, keep]).is_none());
+        assert!(rollout(&kin, 4, &centred, &[left, right, right]).is_none());
+        // A change from 2 to 3 under way: aborting back to 2 is allowed, going on to 4 is not.
+        let changing = at(3, LaneSet::single(2).with(3));
+        assert!(rollout(&kin, 4, &changing, &[keep, keep, keep]).is_some());
+        assert!(rollout(&kin, 4, &changing, &[left, keep, keep]).is_some());
+        assert!(rollout(&kin, 4, &changing, &[right, keep, keep]).is_none());
+        assert!(rollout(&kin, 4, &changing, &[keep, keep, right]).is_none());
     }
 
     #[test]
