@@ -366,17 +366,8 @@ mod tests {
             accel: [-3.0, 0.0, 1.5],
             bounds: [(-3.0, -3.0), (0.0, 0.0), (1.5, 1.5)],
         };
-        let (left, right) = (
-            Action {
-                lateral: -1,
-                longitudinal: 0,
-            },
-            Action {
-                lateral: 1,
-                longitudinal: 0,
-            },
-        );
-        let keep = Action::KEEP;
+        let (keep, left, right) = (ACTIONS[0], ACTIONS[1], ACTIONS[2]);
+        assert_eq!((left.lateral, right.lateral, left.longitudinal), (-1, 1, 0));
         let at = |lane: u8, occupancy: LaneSet| EgoStart {
             maneuver: m(lane, 0),
             x: 0.0,
