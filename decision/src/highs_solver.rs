@@ -79,16 +79,6 @@ pub struct Bounds<'a> {
     pub upper: &'a [f64],
 }
 
-impl<'a> Bounds<'a> {
-    /// The model's own bounds.
-    pub fn model(model: &'a MipModel) -> Self {
-        Self {
-            lower: &model.col_lower,
-            upper: &model.col_upper,
-        }
-    }
-}
-
 /// How a solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MipStatus {
@@ -334,7 +324,7 @@ impl HighsSolver {
     /// branch-and-bound child (one bound changed) starts from its parent's optimum.
     pub fn load_relaxation(&mut self, model: &MipModel) -> Result<(), SolverError> {
         let integrality = vec![ffi::kHighsVarTypeContinuous; model.num_cols()];
-        self.pass(model, Bounds::model(model), &integrality)
+        self.pass(model, &integrality)
     }
 
     /// Solve the loaded relaxation within `bounds` (one entry per column of the model that
@@ -381,7 +371,7 @@ impl HighsSolver {
                 }
             })
             .collect();
-        self.pass(model, Bounds::model(model), &integrality)?;
+        self.pass(model, &integrality)?;
         let solve_id = self.next_id;
         self.next_id += 1;
         self.callback.solve_id.store(solve_id, Ordering::SeqCst);
@@ -392,7 +382,7 @@ impl HighsSolver {
         result
     }
 
-    fn pass(&mut self, model: &MipModel, bounds: Bounds<'_>, integrality: &[c_int]) -> Result<(), SolverError> {
+    fn pass(&mut self, model: &MipModel, integrality: &[c_int]) -> Result<(), SolverError> {
         self.loaded_cols = Some(model.num_cols());
         // SAFETY: every array has the length HiGHS expects for the given counts and format
         // (checked by MipModel's construction); the instance is live.
@@ -408,8 +398,8 @@ impl HighsSolver {
                     ffi::kHighsObjSenseMinimize,
                     0.0,
                     model.col_cost.as_ptr(),
-                    bounds.lower.as_ptr(),
-                    bounds.upper.as_ptr(),
+                    model.col_lower.as_ptr(),
+                    model.col_upper.as_ptr(),
                     model.row_lower.as_ptr(),
                     model.row_upper.as_ptr(),
                     model.row_start.as_ptr(),

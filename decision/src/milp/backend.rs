@@ -93,17 +93,14 @@ impl MilpBackend {
             .filter_map(|actions| evaluate(problem, actions, mode))
             .min_by(|a, b| a.cost.total_cmp(&b.cost));
         let cutoff_of = |e: &Evaluation| e.cost + 1e-6 + 1e-9 * e.cost.abs();
-        let cutoff = incumbent.as_ref().map(cutoff_of);
-        let (settled, _lps) = if self.relaxation_first {
+        let settled = if self.relaxation_first {
             let start = WarmStart {
                 incumbent,
-                cutoff,
                 scored: warm,
             };
-            let (settled, size) = branch::settle(&mut self.tree_lp, problem, mode, &built, start, self.branch_lps)?;
-            (settled, size.lps)
+            branch::settle(&mut self.tree_lp, problem, mode, &built, start, self.branch_lps)?
         } else {
-            (Settled::Open(incumbent), 0)
+            Settled::Open(incumbent)
         };
         let (model, cols) = &built;
         let (result, evaluation, settled_at_root) = match settled {
@@ -145,7 +142,7 @@ impl MilpBackend {
             columns: model.num_cols(),
             binaries: model.num_integers(),
             nodes: result.nodes,
-            warm_start: cutoff.is_some() || incumbent_offered,
+            warm_start: incumbent_offered,
             stopped,
             settled_at_root,
         })

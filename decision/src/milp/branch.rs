@@ -23,24 +23,18 @@ const OPTIMALITY_TOLERANCE: f64 = 1e-6;
 
 /// What the tree settled.
 pub(super) enum Settled {
-    /// The layer's optimum: the best plan (`None`: no plan exists, or none beats the cutoff
-    /// the caller's incumbent set).
+    /// The layer's optimum: the best plan, the warm incumbent included (`None`: no plan
+    /// exists).
     Optimal(Option<Evaluation>),
     /// The LP budget ran out; the MIP must decide, with this best plan so far.
     Open(Option<Evaluation>),
 }
 
-/// What is known before the tree: the best warm candidate, the cutoff its cost sets (plans
-/// must beat it) and the sequences already scored exactly.
+/// What is known before the tree: the best warm candidate (a plan must cost no more to
+/// replace it) and the sequences already scored exactly.
 pub(super) struct WarmStart<'a> {
     pub incumbent: Option<Evaluation>,
-    pub cutoff: Option<f64>,
     pub scored: &'a [Vec<Action>],
-}
-
-/// LP runs the tree made (the root included).
-pub(super) struct TreeSize {
-    pub lps: usize,
 }
 
 struct Node {
@@ -76,9 +70,8 @@ pub(super) fn settle(
     built: &(MipModel, Columns),
     warm: WarmStart<'_>,
     max_lps: usize,
-) -> Result<(Settled, TreeSize), SolverError> {
+) -> Result<Settled, SolverError> {
     let (model, cols) = built;
-    let cutoff = warm.cutoff;
     let mut best = warm.incumbent;
     // Sequences already scored exactly (the warm candidates, then the nodes' roundings).
     let mut scored: Vec<Vec<Action>> = warm.scored.to_vec();
@@ -89,14 +82,14 @@ pub(super) fn settle(
     }];
     lp.load_relaxation(model)?;
     let mut lps = 0;
-    // The bound a node must beat: the best plan's cost, or the caller's cutoff.
-    let target = |best: &Option<Evaluation>| best.as_ref().map(|e| e.cost).or(cutoff);
+    // The bound a node must beat: the best plan's cost.
+    let target = |best: &Option<Evaluation>| best.as_ref().map(|e| e.cost);
     while let Some(at) = lowest(&open) {
         if target(&best).is_some_and(|t| meets(open[at].bound, t)) {
             break; // every open node is at least as costly as the best plan
         }
         if lps == max_lps.max(1) {
-            return Ok((Settled::Open(best), TreeSize { lps }));
+            return Ok(Settled::Open(best));
         }
         let node = open.swap_remove(at);
         let bounds = Bounds {
@@ -110,7 +103,7 @@ pub(super) fn settle(
             (MipStatus::Infeasible, _) => continue,
             (MipStatus::Optimal, Some(values)) => (relaxed.objective, values),
             // Numerical trouble: leave the layer to the MIP.
-            _ => return Ok((Settled::Open(best), TreeSize { lps })),
+            _ => return Ok(Settled::Open(best)),
         };
         if target(&best).is_some_and(|t| meets(bound, t)) {
             continue;
@@ -119,15 +112,15 @@ pub(super) fn settle(
         let Some(column) = branching_column(model, &values) else {
             // Integral: this node's optimum is its LP point.
             match evaluate_at(problem, &actions, &accel, mode) {
-                Some(e) => consider(&mut best, e, cutoff),
-                None => return Ok((Settled::Open(best), TreeSize { lps })),
+                Some(e) => consider(&mut best, e),
+                None => return Ok(Settled::Open(best)),
             }
             continue;
         };
         // The LP point's lane and beta choices rounded, at their own best accelerations.
         if !scored.contains(&actions) {
             if let Some(e) = evaluate(problem, &actions, mode) {
-                consider(&mut best, e, cutoff);
+                consider(&mut best, e);
             }
             scored.push(actions);
             if target(&best).is_some_and(|t| meets(bound, t)) {
@@ -146,7 +139,7 @@ pub(super) fn settle(
         open.push(down);
         open.push(up);
     }
-    Ok((Settled::Optimal(best), TreeSize { lps }))
+    Ok(Settled::Optimal(best))
 }
 
 /// Index of the open node with the lowest bound (best first).
@@ -155,10 +148,9 @@ fn lowest(open: &[Node]) -> Option<usize> {
 }
 
 /// Keep `e` if it is the best plan so far (a later plan wins an exact tie, as a solver's plan
-/// wins one against the warm incumbent) and beats the cutoff.
-fn consider(best: &mut Option<Evaluation>, e: Evaluation, cutoff: Option<f64>) {
-    let beats_cutoff = cutoff.is_none_or(|c| e.cost < c);
-    if beats_cutoff && best.as_ref().is_none_or(|b| e.cost <= b.cost) {
+/// wins one against the warm incumbent).
+fn consider(best: &mut Option<Evaluation>, e: Evaluation) {
+    if best.as_ref().is_none_or(|b| e.cost <= b.cost) {
         *best = Some(e);
     }
 }
