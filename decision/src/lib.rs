@@ -16,6 +16,7 @@ pub mod enumeration;
 pub mod error;
 pub mod evaluate;
 pub mod fallback;
+mod highs_cores;
 pub mod highs_solver;
 pub mod hysteresis;
 pub mod idm;
