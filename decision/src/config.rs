@@ -308,6 +308,10 @@ pub struct CostWeights {
     /// 0 the ego is 0.9 m/s faster, but it also speeds up to each new leader (Case 2: three
     /// switches instead of one).
     pub w_beta: [f64; 3],
+    /// Extra price of the state the plan ends in, `[decelerate, cruise, accelerate]`: a plan
+    /// that ends braking or accelerating still owes the switch back to cruising, which lies
+    /// beyond the horizon (a cost-to-go, like `w_speed_terminal`).
+    pub w_beta_terminal: [f64; 3],
     /// `w_v`, per m/s of `|v_des - v_h|` per step.
     ///
     /// `formulation.md` suggests 0.5, but with `a_acc T_h = 0.6 m/s` one accelerating step
@@ -345,6 +349,7 @@ impl Default for CostWeights {
             w_global: 1.0e4,
             w_lane_change: 4.0,
             w_beta: [1.0, 0.0, 1.0],
+            w_beta_terminal: [0.0, 0.0, 0.0],
             w_speed: 1.0,
             w_speed_terminal: 4.0,
             w_lane_speed: 3.0,
@@ -528,6 +533,7 @@ impl PlannerConfig {
         }
         if c.w_beta
             .iter()
+            .chain(&c.w_beta_terminal)
             .chain([
                 &c.w_lane_change,
                 &c.w_speed,

@@ -126,6 +126,7 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
     }
     if let (Some(last), Some(v)) = (r.maneuvers.last(), r.v.last()) {
         cost += problem.lane_value[(last.lane - 1) as usize];
+        cost += w.w_beta_terminal[(last.beta + 1) as usize];
         cost += w.w_speed_terminal * (problem.desired_speed - v).abs();
     }
     cost

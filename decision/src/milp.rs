@@ -185,7 +185,12 @@ impl<'p> Builder<'p> {
                     self.m.add_col(cost, 0.0, 1.0, true)
                 })
                 .collect();
-            let beta = w.w_beta.map(|cost| self.m.add_col(cost, 0.0, 1.0, true));
+            // The terminal state price is charged on the last step's state.
+            let last = s + 1 == p.horizon;
+            let beta = std::array::from_fn::<_, 3, _>(|b| {
+                let terminal = if last { w.w_beta_terminal[b] } else { 0.0 };
+                self.m.add_col(w.w_beta[b] + terminal, 0.0, 1.0, true)
+            });
             self.cols.act.push(act);
             self.cols.lane.push(lane);
             self.cols.beta.push(beta);

@@ -95,6 +95,14 @@ fn the_same_holds_for_the_discrete_maps() {
     assert!(checked > 500, "{checked}");
 }
 
+#[test]
+fn the_same_holds_with_terminal_state_prices() {
+    let mut config = PlannerConfig::default();
+    config.cost.w_beta_terminal = [2.0, 0.5, 3.0];
+    let checked = oracle_points_are_milp_feasible(&config);
+    assert!(checked > 500, "{checked}");
+}
+
 /// Column vector of a sequence already evaluated feasible (to check the model against the
 /// oracle).
 fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize) -> Vec<f64> {

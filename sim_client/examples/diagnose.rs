@@ -9,7 +9,7 @@
 //! trial decision by decision (speed, state, plan, the leader); `NEAR_M` how far along the road
 //! `SHOW_FALLBACK` lists SVs (80 m), `DUMP_FALLBACK=DIR` writes their situations as JSON for
 //! `cargo run -p decision --example explain_fallback`; `SHOW_COUNTS=1` the beta
-//! switches per trial.
+//! switches per trial; `SHOW_SAFETY=1` the trials with a DRAC above 3 m/s^2.
 use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::episode::{run_episode, Driver};
 use sim_client::link::InProcess;
@@ -40,6 +40,12 @@ fn main() -> anyhow::Result<()> {
             let ep = run_episode(&spec, Driver::Planner(&mut link))?;
             minutes += ep.simulated_s / 60.0;
             let d = &ep.decisions;
+            if std::env::var("SHOW_SAFETY").is_ok() && ep.safety.max_drac_mps2 > 3.0 {
+                println!(
+                    "trial {}:{} min TTC {:?} max DRAC {:.2}",
+                    e.id, trial, ep.safety.min_ttc_s, ep.safety.max_drac_mps2
+                );
+            }
             if std::env::var("SHOW_COUNTS").is_ok() {
                 println!("trial {}:{} switches {}", e.id, trial, ep.metrics().beta_switches);
             }
@@ -49,6 +55,10 @@ fn main() -> anyhow::Result<()> {
                     if let Some(prev) = last_switch {
                         let key = format!("{}{}", if k - prev < 10 { " " } else { "" }, (k - prev).min(10));
                         *dwell.entry(key).or_default() += 1;
+                        if k - prev == 1 {
+                            let key = format!("pulse {:>2} {:>2} {:>2}", d[k - 1].beta, w[0].beta, w[1].beta);
+                            *dwell.entry(key).or_default() += 1;
+                        }
                     }
                     last_switch = Some(k);
                     let lc = w[1].target_lane != w[0].target_lane
@@ -114,6 +124,21 @@ fn main() -> anyhow::Result<()> {
                     let lead = lead.map_or("-".into(), |l| {
                         format!("gap {:.1} v {:.1} a {:.1}", l.x_m - ego.x_m - 5.0, l.v_mps, l.a_mps2)
                     });
+                    let corr: Vec<String> = r
+                        .corrective_sv_ids
+                        .iter()
+                        .filter_map(|id| s.svs.iter().find(|sv| sv.id == *id))
+                        .map(|sv| {
+                            format!(
+                                "#{} dx {:.0} dy {:.1} v {:.1}",
+                                sv.id,
+                                sv.x_m - ego.x_m,
+                                sv.y_m - ego.y_m,
+                                sv.v_mps
+                            )
+                        })
+                        .collect();
+                    let lead = format!("{lead} | corr [{}]", corr.join(", "));
                     let a0 = ep
                         .trajectory
                         .iter()
