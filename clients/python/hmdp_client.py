@@ -30,6 +30,15 @@ Without it every answer is taken, signed or not (docs/protocol.md, "Authenticati
 Every request carries its send time (``sent_at_ns``, Unix time in ns): a planner that gets
 it older than its deadline answers ``stale_fallback`` at once.
 
+Several planner instances (``planner serve --instance-id``, docs/deploy.md, "Scaling out"):
+the client follows their liveliness tokens (``hmdp/planner/alive/<id>``), sends a vehicle's
+requests to its instance, ``hmdp/planner/plan/<id>``, chosen by rendezvous hashing of the
+vehicle id (the Rust channel's hash, so both pick the same instance for a vehicle), and when
+no valid answer came within ``--retry-after`` (0.15 s) asks the next instance once and tries
+the silent one last for ``--suspect-for`` (2 s). Each decision line then names the
+``instance`` that answered. Without any token in sight, or with ``--no-failover``, requests
+go to ``hmdp/planner/plan`` as before.
+
 Exit code: 0 every request was decided, 2 a request was rejected (reason and field are also
 printed on stderr; no later snapshot is sent), 1 no decision otherwise (no planner, timeout,
 an answer this client cannot read or verify, a bad command line or request file).
@@ -40,6 +49,8 @@ Dependencies: eclipse-zenoh; cryptography for --planner-key (see requirements.tx
 import argparse
 import copy
 import json
+import queue
+import re
 import sys
 import threading
 import time
@@ -49,6 +60,14 @@ import zenoh
 import hmdp_signing
 
 PLAN_KEY = "hmdp/planner/plan"  # queryable of `planner serve` (protocol::names)
+ALIVE_KEYS = "hmdp/planner/alive/*"  # the instances' liveliness tokens (protocol::names)
+# An instance id: one plain key chunk (transport::zenoh::instances::check_instance_id).
+INSTANCE_ID = re.compile(r"[A-Za-z0-9._-]{1,64}\Z")
+# Failover between instances (transport::zenoh::Failover's defaults): without a valid answer
+# this long after sending, the request goes once to the next instance, and the silent one is
+# tried last for SUSPECT_FOR_S.
+RETRY_AFTER_S = 0.15
+SUSPECT_FOR_S = 2.0
 STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
 PROTOCOL_VERSION = 3  # also in the iceoryx2 type names: hmdp::PlanRequest/v3
 # The JSON form is chosen by the query's encoding; anything else is read as bincode.
@@ -126,17 +145,232 @@ def open_session(endpoint):
         raise NoAnswer(f"cannot connect to {endpoint}: {e}") from e
 
 
-def ask(session, request, timeout_s, verifier=None, refused=None):
+_MASK64 = (1 << 64) - 1
+
+
+def rendezvous_score(vehicle_id, instance):
+    """Rendezvous (highest random weight) score of `instance` for `vehicle_id`: FNV-1a of the
+    instance id mixed with the vehicle id by SplitMix64, bit for bit the Rust channel's
+    (transport::zenoh::instances::rendezvous_score), so that both pick the same instance."""
+    h = 0xCBF29CE484222325
+    for b in instance.encode():
+        h = ((h ^ b) * 0x100000001B3) & _MASK64
+    z = h ^ ((vehicle_id * 0x9E3779B97F4A7C15) & _MASK64)
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return z ^ (z >> 31)
+
+
+def rendezvous_order(vehicle_id, instances):
+    """`instances` in the order a vehicle tries them: highest score first, ties by name."""
+    ranked = sorted((-rendezvous_score(vehicle_id, i), i) for i in instances)
+    return [i for _, i in ranked]
+
+
+def instance_of_alive_key(key):
+    """The instance id in a liveliness token's key, or None if it is not one of ours."""
+    prefix = ALIVE_KEYS[:-1]
+    if not key.startswith(prefix):
+        return None
+    instance = key[len(prefix) :]
+    return instance if INSTANCE_ID.match(instance) else None
+
+
+class Instances:
+    """The planner instances whose liveliness tokens this session sees, those suspected of
+    hanging, and the choice of an instance per vehicle (with one retry on the next; see
+    `ask`). `last_instance` / `last_retries`: who answered the last request, and how often it
+    was sent again."""
+
+    def __init__(self, session, retry_after_s=RETRY_AFTER_S, suspect_for_s=SUSPECT_FOR_S):
+        self.retry_after_s = retry_after_s
+        self.suspect_for_s = suspect_for_s
+        self.last_instance = None
+        self.last_retries = 0
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self._events = 0  # tokens seen (declared or gone), to tell when the history is in
+        self._live = set()
+        self._suspect = {}  # instance -> time.monotonic() until which it is tried last
+        self.subscriber = session.liveliness().declare_subscriber(ALIVE_KEYS, self._on_token, history=True)
+        self._await_history()
+
+    def _await_history(self, first_s=0.5, quiet_s=0.05):
+        """Waits for the tokens present now, before the first request: the subscriber's
+        history arrives asynchronously (a few ms after the declaration, all at once; a
+        liveliness get through hmdp-router returned no token). Up to `first_s` for a first
+        token (a planner without instances has none), then until none came for `quiet_s`."""
+        give_up = time.monotonic() + first_s
+        with self._changed:
+            while self._events == 0 and time.monotonic() < give_up:
+                self._changed.wait(give_up - time.monotonic())
+            seen = -1
+            while self._events and seen != self._events:
+                seen = self._events
+                self._changed.wait(quiet_s)
+
+    def _on_token(self, sample):
+        instance = instance_of_alive_key(str(sample.key_expr))
+        if instance is None:
+            return
+        with self._changed:
+            if sample.kind == zenoh.SampleKind.PUT:
+                # A token declared anew (a restart) wipes the suspicion.
+                self._suspect.pop(instance, None)
+                self._live.add(instance)
+            else:
+                self._live.discard(instance)
+                self._suspect.pop(instance, None)
+            self._events += 1
+            self._changed.notify_all()
+
+    def live(self):
+        """The live instances, by name."""
+        with self._lock:
+            return sorted(self._live)
+
+    def suspect(self, instance):
+        """`instance` left a request unanswered: try it last for `suspect_for_s`."""
+        with self._lock:
+            self._suspect[instance] = time.monotonic() + self.suspect_for_s
+
+    def order(self, vehicle_id):
+        """The live instances in the order `vehicle_id` tries them now: rendezvous order,
+        suspected ones moved to the end (in their rendezvous order)."""
+        now = time.monotonic()
+        with self._lock:
+            self._suspect = {i: until for i, until in self._suspect.items() if until > now}
+            order = rendezvous_order(vehicle_id, self._live)
+            return sorted(order, key=lambda i: i in self._suspect)
+
+
+def _response_of(reply):
+    """The JSON response of a reply; NoAnswer if it cannot be read or is of another version."""
+    try:
+        response = json.loads(reply.ok.payload.to_bytes())
+    except ValueError as e:  # not UTF-8 or not JSON: not the JSON form asked for
+        raise NoAnswer(f"unreadable answer: {e}") from e
+    # Another protocol version may be laid out differently: check it before anything else.
+    if not isinstance(response, dict) or response.get("version") != PROTOCOL_VERSION:
+        version = response.get("version") if isinstance(response, dict) else None
+        raise NoAnswer(f"response of protocol version {version}, expected {PROTOCOL_VERSION}")
+    return response
+
+
+def _ask_instances(session, request, payload, order, timeout_s, verifier, refused, instances):
+    """One request to its vehicle's instance, `order[0]`, and once more to `order[1]` when no
+    valid answer came within `instances.retry_after_s` (or that query ended without one).
+    The first valid answer for this request (its vehicle id and sequence) wins."""
+    start = time.monotonic()
+    deadline = start + timeout_s
+    retry_at = start + instances.retry_after_s
+    expected = (request.get("vehicle_id"), request.get("sequence"))
+    events = queue.Queue()
+
+    def send(attempt, instance, wait_s):
+        def on_reply(reply):
+            events.put(("reply", attempt, reply))
+
+        def on_end():  # Zenoh drops the callback when the query is over
+            events.put(("end", attempt, None))
+
+        try:
+            # Target ALL: a forged queryable on the instance's key does not take the query
+            # away from the instance (with --planner-key its answers are refused).
+            session.get(
+                f"{PLAN_KEY}/{instance}",
+                zenoh.handlers.Callback(on_reply, on_end),
+                target=zenoh.QueryTarget.ALL,
+                consolidation=zenoh.ConsolidationMode.NONE,
+                timeout=max(wait_s, 0.001),
+                payload=payload,
+                encoding=zenoh.Encoding(JSON_ENCODING),
+            )
+        except zenoh.ZError as e:
+            print(f"query to planner instance {instance} not sent: {e}", file=sys.stderr)
+            events.put(("end", attempt, None))
+
+    send(0, order[0], timeout_s)
+    sent, ended, why = 1, set(), None
+    while True:
+        may_retry = sent < min(len(order), 2)
+        wake = min(retry_at, deadline) if may_retry else deadline
+        try:
+            kind, attempt, reply = events.get(timeout=max(wake - time.monotonic(), 0.0))
+        except queue.Empty:
+            kind = attempt = reply = None
+        retry_now = False
+        if kind == "reply":
+            if reply.ok is not None:  # error replies (a query's "Timeout") carry no answer
+                response = _response_of(reply)
+                # A decision for another request is never taken (a rejection of an unreadable
+                # request may echo 0 for both).
+                mismatched = (response.get("vehicle_id"), response.get("sequence")) != expected
+                if mismatched and "decided" in response.get("outcome", {}):
+                    print(f"an answer for another request ignored: {response.get('vehicle_id')}/"
+                          f"{response.get('sequence')}", file=sys.stderr)
+                    continue
+                if verifier is not None:
+                    try:
+                        verifier.verify(response)
+                    except hmdp_signing.SignatureError as e:
+                        why = e
+                        if refused is not None:
+                            refused.append(e)
+                        continue
+                instances.last_instance = order[attempt]
+                instances.last_retries = sent - 1
+                return response
+        elif kind == "end":
+            ended.add(attempt)
+            if len(ended) == sent and not may_retry:
+                break
+            # The instance's query ended without a valid answer (it went away, or only
+            # refused answers came): no reason to wait for the retry time, if time is left.
+            retry_now = may_retry and len(ended) == sent and time.monotonic() < deadline
+        elif time.monotonic() >= deadline:
+            break
+        else:
+            retry_now = may_retry
+        if retry_now:
+            silent, following = order[0], order[1]
+            elapsed_ms = (time.monotonic() - start) * 1e3
+            print(f"planner instance {silent} gave no answer in {elapsed_ms:.0f} ms: asking {following}",
+                  file=sys.stderr)
+            instances.suspect(silent)
+            send(1, following, deadline - time.monotonic())
+            sent += 1
+    instances.last_instance, instances.last_retries = None, sent - 1
+    if why is not None:
+        raise NoAnswer(f"no verified answer within {timeout_s} s (refused: {why})")
+    raise NoAnswer(f"no answer within {timeout_s} s from planner instances {order[:sent]}")
+
+
+def ask(session, request, timeout_s, verifier=None, refused=None, instances=None):
     """Sends one PlanRequest (a dict) as JSON, stamped with its send time; returns the
     PlanResponse as a dict.
 
     With `verifier` (a hmdp_signing.Verifier) an answer that does not verify is refused (its
     SignatureError is appended to `refused`, a list, when given) and the next one is awaited.
+
+    With `instances` (an `Instances` of this session) and planner instances in sight, the
+    request goes to its vehicle's instance, with one retry on the next (`_ask_instances`);
+    without, to the plain key `PLAN_KEY`.
     """
     request["sent_at_ns"] = time.time_ns()
+    payload = json.dumps(request).encode()
+    vehicle_id = request.get("vehicle_id")
+    order = []
+    # A vehicle id the planner will reject anyway (not a u64) goes to the plain key.
+    if instances is not None and type(vehicle_id) is int and 0 <= vehicle_id <= _MASK64:
+        order = instances.order(vehicle_id)
+    if order:
+        return _ask_instances(session, request, payload, order, timeout_s, verifier, refused, instances)
+    if instances is not None:
+        instances.last_instance, instances.last_retries = None, 0
     replies = session.get(
         PLAN_KEY,
-        payload=json.dumps(request).encode(),
+        payload=payload,
         encoding=zenoh.Encoding(JSON_ENCODING),
         timeout=timeout_s,
         # Every reply as it comes: with consolidation a forged reply could hide the planner's.
@@ -152,13 +386,7 @@ def ask(session, request, timeout_s, verifier=None, refused=None):
             if error == "Timeout":
                 break
             raise NoAnswer(f"error reply: {error}")
-        try:
-            response = json.loads(reply.ok.payload.to_bytes())
-        except ValueError as e:  # not UTF-8 or not JSON: not the JSON form asked for
-            raise NoAnswer(f"unreadable answer: {e}") from e
-        # Another protocol version may be laid out differently: check it before anything else.
-        if response.get("version") != PROTOCOL_VERSION:
-            raise NoAnswer(f"response of protocol version {response.get('version')}, expected {PROTOCOL_VERSION}")
+        response = _response_of(reply)
         if verifier is not None:
             try:
                 verifier.verify(response)
@@ -268,10 +496,15 @@ def run(args):
     session = open_session(args.connect)
     try:
         stats = StatsListener(session) if args.stats else None
+        instances = None if args.no_failover else Instances(session, args.retry_after, args.suspect_for)
         code = 0
         for step in range(1, args.steps + 1):
-            response = ask(session, request, args.timeout, verifier, refused)
+            response = ask(session, request, args.timeout, verifier, refused, instances)
             line = summary(step, response)
+            if instances is not None:
+                # Who answered (None: the plain key, no instance in sight), after how many resends.
+                line["instance"] = instances.last_instance
+                line["retries"] = instances.last_retries
             print(json.dumps(line, indent=2 if args.pretty else None), flush=True)
             if "rejected" in line:
                 r = line["rejected"]
@@ -303,6 +536,25 @@ def main(argv=None):
     parser.add_argument("--pretty", action="store_true", help="indent the JSON output")
     parser.add_argument(
         "--planner-key", metavar="FILE.pub", help="the planner's public key: refuse answers that do not verify"
+    )
+    parser.add_argument(
+        "--retry-after",
+        type=float,
+        default=RETRY_AFTER_S,
+        metavar="S",
+        help="several planner instances: without a valid answer this long, ask the next instance once",
+    )
+    parser.add_argument(
+        "--suspect-for",
+        type=float,
+        default=SUSPECT_FOR_S,
+        metavar="S",
+        help="how long an instance that left a request unanswered is tried last",
+    )
+    parser.add_argument(
+        "--no-failover",
+        action="store_true",
+        help="ignore the planner instances: every request to hmdp/planner/plan",
     )
     parser.add_argument(
         "--print-example", action="store_true", help="print the built-in snapshot (a template for --request) and exit"

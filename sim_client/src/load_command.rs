@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 use recording::{PlanRecorder, RecorderOptions, RecordingSummary};
-use sim_client::load::{self, parse_run_length, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines};
+use sim_client::load::{
+    self, parse_run_length, FloodSettings, LiveCounters, LoadReport, LoadSettings, ProcessMonitor, ProgressLines,
+};
 
 use super::Common;
 
@@ -53,6 +55,18 @@ pub struct LoadArgs {
     /// Print a progress line this often.
     #[arg(long, value_parser = parse_run_length, default_value = "10s")]
     report_every: Duration,
+    /// Beside the vehicles, flood the planner as one vehicle (`--flood-vehicle-id`) from this
+    /// many Zenoh sessions, each sending `--flood-rate` requests a second of a fixed scene
+    /// without waiting for the answers (`--transport zenoh` only). The flood's own answers
+    /// are reported apart.
+    #[arg(long, default_value_t = 0)]
+    flood_sessions: usize,
+    /// Requests per second per flood session.
+    #[arg(long, default_value_t = 500.0)]
+    flood_rate: f64,
+    /// The flooding vehicle's id.
+    #[arg(long, default_value_t = 666)]
+    flood_vehicle_id: u64,
     /// Record every request the vehicles send and the answer each got (the vehicles' side,
     /// late answers included) to this MCAP file, as `planner serve --record` does; with
     /// `--processes N` each process writes `FILE.worker<i>.mcap`. docs/recording.md.
@@ -105,19 +119,45 @@ pub fn run_load_command(args: LoadArgs, default_duration: Duration, soak: bool) 
         _ => None,
     };
     settings.recorder = recorder.clone();
-    let progress = ProgressLines::start(live, args.report_every);
-    let parts = if args.processes == 0 {
-        vec![load::run_part(&settings, Instant::now())?]
-    } else {
-        load::run_worker_processes(
-            &settings,
-            args.processes,
-            args.common.planner_config.as_deref(),
-            args.record.as_deref(),
-        )?
+    let flood = match (&settings.transport, args.flood_sessions) {
+        (_, 0) => None,
+        (sim_client::link::Transport::Zenoh(target), sessions) => Some((
+            target.clone(),
+            FloodSettings {
+                sessions,
+                rate_hz: args.flood_rate,
+                vehicle_id: args.flood_vehicle_id,
+                deadline: settings.deadline - settings.transport_margin,
+            },
+        )),
+        _ => anyhow::bail!("--flood-sessions needs --transport zenoh"),
     };
+    let progress = ProgressLines::start(live, args.report_every);
+    let started = Instant::now();
+    let (parts, flood) = std::thread::scope(|scope| -> Result<_> {
+        let flood = flood.map(|(target, f)| {
+            let end = started + settings.duration;
+            scope.spawn(move || load::run_flood(&target, f, end))
+        });
+        let parts = if args.processes == 0 {
+            vec![load::run_part(&settings, started)?]
+        } else {
+            load::run_worker_processes(
+                &settings,
+                args.processes,
+                args.common.planner_config.as_deref(),
+                args.record.as_deref(),
+            )?
+        };
+        let flood = match flood {
+            Some(f) => Some(f.join().map_err(|_| anyhow::anyhow!("the flood thread panicked"))??),
+            None => None,
+        };
+        Ok((parts, flood))
+    })?;
     drop(progress);
-    let report = LoadReport::merge(&settings, &parts, monitor.map(|m| m.finish(settings.warmup)));
+    let mut report = LoadReport::merge(&settings, &parts, monitor.map(|m| m.finish(settings.warmup)));
+    report.flood = flood;
     drop(planner);
     print!("{}", report.summary());
     if let Some(recorder) = recorder {

@@ -254,3 +254,68 @@ pub fn python_ready(modules: &str, hint: &str) -> bool {
     }
     panic!("python3 cannot import {modules}: {hint}, or set HMDP_SKIP_PYTHON=1 to skip these tests\n{why}");
 }
+
+/// The shipped TLS deployment's files for one test: certificates issued by
+/// `deploy/tls/make-certs` (plus a client certificate per name in `clients`) and the
+/// `deploy/zenoh/` files rendered with their paths and free loopback ports.
+pub struct TlsFiles {
+    /// Where the certificates and the rendered files are.
+    pub dir: PathBuf,
+    /// The router's TLS port (the files' 7447).
+    pub port: u16,
+    /// The router's loopback TCP port for the planner (the files' 7448).
+    pub local_port: u16,
+}
+
+impl TlsFiles {
+    /// Certificates in a fresh scratch directory named after `tag`.
+    pub fn new(tag: &str, clients: &[&str]) -> Self {
+        let dir = scratch_dir(tag);
+        let make_certs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/tls/make-certs");
+        let mut command = std::process::Command::new(&make_certs);
+        command.arg(dir.join("tls"));
+        for c in clients {
+            command.args(["--client", c]);
+        }
+        let out = command.output().expect("deploy/tls/make-certs runs (bash, openssl)");
+        assert!(
+            out.status.success(),
+            "make-certs: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Self {
+            dir,
+            port: free_port(),
+            local_port: free_port(),
+        }
+    }
+
+    /// `deploy/zenoh/NAME` with this test's certificates and ports, written into the
+    /// scratch directory; panics if the file holds a path or port this does not rewrite.
+    pub fn render(&self, name: &str) -> PathBuf {
+        let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../deploy/zenoh")
+            .join(name);
+        let text = std::fs::read_to_string(&shipped).expect("shipped configuration");
+        let port = self.port;
+        let rendered = text
+            .replace("/etc/hmdp/tls/", &format!("{}/", self.dir.join("tls").display()))
+            .replace("tls/0.0.0.0:7447", &format!("tls/127.0.0.1:{port}"))
+            .replace("tls/localhost:7447", &format!("tls/localhost:{port}"))
+            .replace("tls/hmdp-router:7447", &format!("tls/127.0.0.1:{port}"))
+            .replace("tcp/127.0.0.1:7448", &format!("tcp/127.0.0.1:{}", self.local_port));
+        let mut active = rendered.lines().filter(|l| !l.trim_start().starts_with("//"));
+        assert!(
+            active.all(|l| !l.contains("/etc/hmdp") && !l.contains(":7447") && !l.contains(":7448")),
+            "{name} no longer matches what the tests rewrite"
+        );
+        let path = self.dir.join(name);
+        std::fs::write(&path, rendered).expect("rendered configuration");
+        path
+    }
+
+    /// The path of a certificate or key file, e.g. `vehicle.pem`.
+    pub fn cert(&self, file: &str) -> PathBuf {
+        self.dir.join("tls").join(file)
+    }
+}

@@ -5,7 +5,7 @@
 //! * plain TCP: `planner serve --zenoh-listen` with its built-in configuration, junk
 //!   connections and 300 idle sockets on its port;
 //! * TLS: the shipped TLS deployment (`hmdp-router` with `deploy/zenoh/router-tls.json5`,
-//!   the planner and the vehicle with `planner-tls.json5` / `client-tls.json5`, certificates
+//!   the planner and the vehicle with `planner-local.json5` / `client-tls.json5`, certificates
 //!   from `deploy/tls/make-certs`), junk connections on the router's TLS port.
 //!
 //! What decides it (docs/deploy.md, "Connection floods"): Zenoh's `accept_pending` and
@@ -15,12 +15,11 @@
 
 use std::io::Read;
 use std::net::{SocketAddr, TcpStream};
-use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use protocol::{decode_bincode, encode_bincode, PlanResponse, WireFormat};
-use system_tests::{free_port, scratch_dir, worked_example_request, Process, ZenohPlanner};
+use system_tests::{worked_example_request, Process, TlsFiles, ZenohPlanner};
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 
 /// Junk connections a second (connected and closed at once).
@@ -172,48 +171,17 @@ fn plain_tcp_junk_and_idle_connections_do_not_lock_a_new_vehicle_out() {
     new_vehicle_is_served_during_flood(port, true, &target, &|| planner.log());
 }
 
-/// `deploy/zenoh/NAME` with the certificates of `certs` and every endpoint's port
-/// (`:7447`) replaced by `port`, written into `dir`.
-fn render(name: &str, certs: &Path, port: u16, dir: &Path) -> PathBuf {
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/zenoh").join(name);
-    let text = std::fs::read_to_string(&shipped).expect("shipped configuration");
-    let rendered = text
-        .replace("/etc/hmdp/tls/", &format!("{}/", certs.display()))
-        .replace("tls/0.0.0.0:7447", &format!("tls/127.0.0.1:{port}"))
-        .replace("tls/localhost:7447", &format!("tls/localhost:{port}"))
-        .replace("tls/hmdp-router:7447", &format!("tls/127.0.0.1:{port}"));
-    let mut active = rendered.lines().filter(|l| !l.trim_start().starts_with("//"));
-    assert!(
-        active.all(|l| !l.contains("/etc/hmdp") && !l.contains(":7447")),
-        "{name} no longer matches what this test rewrites"
-    );
-    let path = dir.join(name);
-    std::fs::write(&path, rendered).expect("rendered configuration");
-    path
-}
-
 #[test]
 fn tls_junk_connections_do_not_lock_a_new_vehicle_out() {
-    let dir = scratch_dir("flood-tls");
-    let certs = dir.join("tls");
-    let make_certs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/tls/make-certs");
-    let out = std::process::Command::new(&make_certs)
-        .arg(&certs)
-        .output()
-        .expect("deploy/tls/make-certs runs (bash, openssl)");
-    assert!(
-        out.status.success(),
-        "make-certs: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let port = free_port();
-    let router_config = render("router-tls.json5", &certs, port, &dir);
+    let tls = TlsFiles::new("flood-tls", &[]);
+    let port = tls.port;
+    let router_config = tls.render("router-tls.json5");
     let router = Process::start(
         "hmdp-router",
         &["--config", router_config.to_str().unwrap()],
         "flood-tls-router",
     );
-    let planner_config = render("planner-tls.json5", &certs, port, &dir);
+    let planner_config = tls.render("planner-local.json5");
     let planner = Process::start(
         "planner",
         &[
@@ -226,7 +194,7 @@ fn tls_junk_connections_do_not_lock_a_new_vehicle_out() {
         "flood-tls-planner",
     );
     let target = ZenohTarget {
-        config_file: Some(render("client-tls.json5", &certs, port, &dir)),
+        config_file: Some(tls.render("client-tls.json5")),
         ..ZenohTarget::default()
     };
     let logs = || format!("router:\n{}\nplanner:\n{}", router.log(), planner.log());

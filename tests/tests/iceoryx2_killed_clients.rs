@@ -97,7 +97,7 @@ fn newcomer(prefix: &str, vehicle_id: u64) -> Figures {
 }
 
 /// What a clean `sim_client load` run reported: answers it took for another request, and
-/// answers its vehicles' clients discarded as not theirs (logged).
+/// answers its vehicles' clients discarded as not theirs (reported and logged).
 fn clean_load_run(prefix: &str, dir: &std::path::Path) -> (u64, usize, String) {
     let json = dir.join("report.json");
     let out = Command::new(binary("sim_client"))
@@ -113,8 +113,11 @@ fn clean_load_run(prefix: &str, dir: &std::path::Path) -> (u64, usize, String) {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).expect("report")).expect("a JSON report");
     let mismatched = report["counts"]["mismatched"].as_u64().expect("counts.mismatched");
-    let discarded = log.lines().filter(|l| l.contains(": ignored")).count();
-    (mismatched, discarded, log)
+    // The report counts what the clients discarded; each discard is also logged.
+    let discarded = report["counts"]["discarded"].as_u64().expect("counts.discarded");
+    let logged = log.lines().filter(|l| l.contains(": ignored")).count();
+    assert_eq!(discarded, logged as u64, "discards reported and logged differ:\n{log}");
+    (mismatched, discarded as usize, log)
 }
 
 /// `sim_client load` over iceoryx2 as a process, until killed.

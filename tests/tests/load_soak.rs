@@ -78,6 +78,7 @@ fn check_soak(transport_args: &[&str], tag: &str) {
     assert_eq!(count(&report, "lost"), 0, "lost answers");
     assert_eq!(count(&report, "duplicated"), 0, "duplicated answers");
     assert_eq!(count(&report, "mismatched"), 0, "answers to the wrong request");
+    assert_eq!(count(&report, "discarded"), 0, "answers for other requests received");
     assert_eq!(count(&report, "late"), 0, "deadline misses at nominal load");
     assert_eq!(count(&report, "in_time"), sent);
     assert_eq!(report["by_layer"]["watchdog_fallback"].as_u64(), Some(0), "{report}");

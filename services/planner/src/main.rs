@@ -165,6 +165,10 @@ struct ServeArgs {
     /// clock_skew_tolerance_ms`; default 50ms.
     #[arg(long, value_parser = humantime::parse_duration)]
     clock_skew_tolerance: Option<Duration>,
+    /// Nice value of the solver threads (0, the default: the process's own priority); above
+    /// 0 the watchdog and the transports take the CPU before a solve does.
+    #[arg(long, default_value_t = planner::service::WORKER_NICE, value_parser = clap::value_parser!(i32).range(0..=19))]
+    worker_nice: i32,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
@@ -197,6 +201,7 @@ fn service_config(args: &ServeArgs, file: &ServiceSection) -> Result<ServiceConf
         per_second: args.vehicle_rate_limit,
         burst: args.vehicle_rate_limit.max(1.0),
     });
+    config.worker_nice = args.worker_nice;
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
     Ok(config)
 }

@@ -41,6 +41,12 @@ pub const QUEUE_PER_WORKER: usize = 32;
 /// the answer, so more than a few queued requests of one id are a flood.
 pub const QUEUE_PER_VEHICLE: usize = 8;
 
+/// Default nice value of the worker threads (see [`ServiceConfig::worker_nice`]): 0, the
+/// process's own. Measured under a flood (docs/deploy.md, "Hostile peers"), 10 did not make
+/// the watchdog's answers earlier on a machine shared with the vehicles, and it starved the
+/// solves of CPU there.
+pub const WORKER_NICE: i32 = 0;
+
 /// Settings of the service core.
 #[derive(Debug, Clone)]
 pub struct ServiceConfig {
@@ -60,6 +66,9 @@ pub struct ServiceConfig {
     pub clock_skew_tolerance: Duration,
     /// Signs every answer; `None`: answers are unsigned.
     pub signer: Option<ResponseSigner>,
+    /// Nice value of the worker threads (0: the process's own); above 0 the watchdog and the
+    /// transports take the CPU before a solve does.
+    pub worker_nice: i32,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
     /// Records every decoded request and its answer (`planner serve --record`).
@@ -78,6 +87,7 @@ impl Default for ServiceConfig {
             max_deadline: DEFAULT_DEADLINE,
             clock_skew_tolerance: protocol::DEFAULT_CLOCK_SKEW_TOLERANCE,
             signer: None,
+            worker_nice: WORKER_NICE,
             inject_solve_delay: Duration::ZERO,
             recorder: None,
         }
@@ -183,10 +193,18 @@ impl Service {
             let ready = ready_tx.clone();
             let delay = config.inject_solve_delay;
             let tolerance = config.clock_skew_tolerance;
+            let nice = config.worker_nice;
             threads.push(
                 std::thread::Builder::new()
                     .name(format!("planner-worker-{i}"))
-                    .spawn(move || worker(&cfg, &rx, &stats, (delay, tolerance), &ready))?,
+                    .spawn(move || {
+                        if nice != 0 {
+                            if let Err(e) = supervise::set_thread_nice(nice) {
+                                tracing::warn!("worker thread priority (nice {nice}): {e}");
+                            }
+                        }
+                        worker(&cfg, &rx, &stats, (delay, tolerance), &ready)
+                    })?,
             );
         }
         drop(ready_tx);

@@ -75,6 +75,10 @@ async fn run(config: zenoh::Config) -> Result<()> {
 fn main() -> Result<()> {
     let args = Args::parse();
     supervise::init_process("info,zenoh=warn");
+    // zenoh-link-tls writes with writev, which raises SIGPIPE when the peer has gone: with
+    // the default action one vehicle that hangs up killed the router (as zenohd, which keeps
+    // Rust's ignored SIGPIPE, does not die).
+    supervise::ignore_sigpipe();
     let config = load_config(&args)?;
     // Zenoh needs a multi-thread runtime (its own tasks block in places).
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -49,6 +49,24 @@ pub fn ignore_sigpipe() {
     };
 }
 
+/// Sets the calling thread's nice value (Linux schedules threads one by one; raising it
+/// needs no privilege). The planner's solver threads run at a lower priority than its
+/// watchdog and its transports, so that on a busy machine a deadline answer or a reply is not
+/// kept waiting behind a solve. A no-op elsewhere.
+pub fn set_thread_nice(nice: i32) -> std::io::Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: gettid and setpriority concern only the calling thread.
+        let result = unsafe { libc::setpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t, nice) };
+        if result != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = nice;
+    Ok(())
+}
+
 /// Hands the allocator's free memory back to the system (glibc keeps freed heap pages,
 /// so a service's RSS would otherwise stay at its high-water mark, and a soak could not
 /// tell a leak from one large request). A no-op elsewhere.

@@ -71,9 +71,9 @@ pub struct Answer {
     /// Times the request was sent again to another planner instance (Zenoh failover, 0 or
     /// 1); the retried instance's answers are discarded once one is taken.
     pub retries: usize,
-    /// Answers that reached this channel for another request and were discarded (iceoryx2:
-    /// tagged for another client or exchange, or with another vehicle id or sequence); 0
-    /// with a correct planner.
+    /// Answers that reached this channel for another request and were discarded (another
+    /// vehicle id or sequence; over iceoryx2 also tagged for another client or exchange);
+    /// never taken, 0 with a correct planner.
     pub mismatched: usize,
 }
 

@@ -8,6 +8,7 @@
 //! from `/proc` when its pid is known. With a recorder, every request and its answer are
 //! recorded as the planner records them (docs/recording.md).
 
+mod flood;
 mod multiprocess;
 mod procmon;
 mod report;
@@ -19,6 +20,7 @@ use std::time::{Duration, Instant};
 
 use decision::PlannerConfig;
 
+pub use flood::{run_flood, FloodReport, FloodSettings};
 pub use multiprocess::{run_worker_processes, transport_flags, worker_count, worker_record_path};
 pub use procmon::{ProcessMonitor, ProcessReport, ProcessSample};
 pub use report::{Counts, HistogramData, LoadPart, LoadReport, TimelinePoint};
@@ -138,7 +140,7 @@ pub fn run_part(settings: &LoadSettings, start: Instant) -> Result<LoadPart> {
         elapsed_s: start.elapsed().as_secs_f64(),
         ..Default::default()
     };
-    let [mut rt, mut q, mut s, mut tr] = [(); 4].map(|_| stats::histogram());
+    let [mut rt, mut q, mut s, mut tr, mut wp, mut wr] = [(); 6].map(|_| stats::histogram());
     for r in results {
         let v = r?;
         part.counts.add(&v.counts);
@@ -148,6 +150,8 @@ pub fn run_part(settings: &LoadSettings, start: Instant) -> Result<LoadPart> {
             (&mut q, &v.queue),
             (&mut s, &v.solve),
             (&mut tr, &v.transport),
+            (&mut wp, &v.watchdog_late_planner),
+            (&mut wr, &v.watchdog_late_received),
         ] {
             into.add(from)
                 .map_err(|e| SimClientError::Config(format!("histogram: {e}")))?;
@@ -158,6 +162,8 @@ pub fn run_part(settings: &LoadSettings, start: Instant) -> Result<LoadPart> {
     part.queue = HistogramData::of(&q);
     part.solve = HistogramData::of(&s);
     part.transport = HistogramData::of(&tr);
+    part.watchdog_late_planner = HistogramData::of(&wp);
+    part.watchdog_late_received = HistogramData::of(&wr);
     Ok(part)
 }
 

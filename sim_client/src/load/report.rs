@@ -52,6 +52,11 @@ pub struct Counts {
     /// (Zenoh, several instances; docs/deploy.md, "Scaling out"). Not a violation.
     #[serde(default)]
     pub retried: u64,
+    /// Answers the channel received for another request (another vehicle id or sequence;
+    /// over iceoryx2 also tagged for another client or exchange) and discarded, never
+    /// taken: 0 with a correct planner.
+    #[serde(default)]
+    pub discarded: u64,
 }
 
 impl Counts {
@@ -65,6 +70,7 @@ impl Counts {
         self.mismatched += o.mismatched;
         self.refused += o.refused;
         self.retried += o.retried;
+        self.discarded += o.discarded;
     }
 
     /// Requests not answered by their deadline (late or lost).
@@ -124,6 +130,12 @@ pub struct LoadPart {
     pub solve: HistogramData,
     /// Round trip minus the planner's queueing and solve time, µs.
     pub transport: HistogramData,
+    /// Watchdog answers at the deadline: the planner's answer time minus the deadline, µs.
+    #[serde(default)]
+    pub watchdog_late_planner: HistogramData,
+    /// The same answers as received: round trip minus the deadline asked for, µs.
+    #[serde(default)]
+    pub watchdog_late_received: HistogramData,
     /// Per sample period.
     pub timeline: Vec<TimelinePoint>,
 }
@@ -157,6 +169,17 @@ pub struct LoadReport {
     pub solve: Percentiles,
     /// Round trip minus queueing and solve time: the transport's share.
     pub transport_overhead: Percentiles,
+    /// Watchdog answers given at the deadline (not at once for overload or the rate limit):
+    /// the planner's answer time minus the deadline (the answer's `queue_us`).
+    #[serde(default)]
+    pub watchdog_late_planner: Percentiles,
+    /// The same answers as the vehicles received them: round trip minus the deadline the
+    /// request asked for (the transport both ways included).
+    #[serde(default)]
+    pub watchdog_late_received: Percentiles,
+    /// The flood beside the vehicles (`--flood-sessions`), if any.
+    #[serde(default)]
+    pub flood: Option<super::flood::FloodReport>,
     /// Round trip at quantiles `1 - 10^-k`, k = 0, 0.1, .., 5: (k, µs), for the latency plot.
     pub round_trip_spectrum: Vec<(f64, u64)>,
     /// Per sample period.
@@ -170,7 +193,7 @@ impl LoadReport {
     pub fn merge(settings: &LoadSettings, parts: &[LoadPart], planner: Option<ProcessReport>) -> Self {
         let mut counts = Counts::default();
         let mut by_layer = LayerCounts::default();
-        let [mut rt, mut q, mut s, mut tr] = [(); 4].map(|_| stats::histogram());
+        let [mut rt, mut q, mut s, mut tr, mut wp, mut wr] = [(); 6].map(|_| stats::histogram());
         let mut timeline: Vec<TimelinePoint> = Vec::new();
         let mut elapsed: f64 = 0.0;
         let mut clients = 0;
@@ -182,6 +205,8 @@ impl LoadReport {
             p.queue.add_to(&mut q);
             p.solve.add_to(&mut s);
             p.transport.add_to(&mut tr);
+            p.watchdog_late_planner.add_to(&mut wp);
+            p.watchdog_late_received.add_to(&mut wr);
             elapsed = elapsed.max(p.elapsed_s);
             add_timeline(&mut timeline, &p.timeline);
         }
@@ -203,6 +228,9 @@ impl LoadReport {
             queue: Percentiles::of_histogram(&q),
             solve: Percentiles::of_histogram(&s),
             transport_overhead: Percentiles::of_histogram(&tr),
+            watchdog_late_planner: Percentiles::of_histogram(&wp),
+            watchdog_late_received: Percentiles::of_histogram(&wr),
+            flood: None,
             round_trip_spectrum: spectrum(&rt),
             timeline,
             planner,
@@ -250,8 +278,8 @@ impl LoadReport {
         let c = &self.counts;
         let l = &self.by_layer;
         let mut out = format!(
-            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}, refused {}, retried {}; {:.1} decisions/s in time\n",
-            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, c.refused, c.retried, self.throughput_per_s
+            "{}: {} vehicles x {} Hz for {:.1} s: sent {}, in time {}, late {}, lost {}, duplicated {}, mismatched {}, discarded {}, refused {}, retried {}; {:.1} decisions/s in time\n",
+            self.transport, self.clients, self.rate_hz, self.duration_s, c.sent, c.in_time, c.late, c.lost, c.duplicated, c.mismatched, c.discarded, c.refused, c.retried, self.throughput_per_s
         );
         out += &format!(
             "  layers: nominal {}, global relaxation {}, fallback {}, watchdog fallback {}, stale fallback {}, rejected {}\n",
@@ -266,10 +294,20 @@ impl LoadReport {
             ("queueing", &self.queue),
             ("solve", &self.solve),
             ("transport share", &self.transport_overhead),
+            ("watchdog late", &self.watchdog_late_planner),
+            ("  as received", &self.watchdog_late_received),
         ] {
             out += &format!(
                 "  {:<18} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
                 name, p.p50_us, p.p90_us, p.p99_us, p.p999_us, p.max_us
+            );
+        }
+        if let Some(f) = &self.flood {
+            let (w, r) = (&f.watchdog_late_planner, &f.watchdog_late_received);
+            out += &format!(
+                "  flood: vehicle {} from {} sessions: sent {}, answered {} (nominal {}, watchdog {}); watchdog late p50/p99/max {}/{}/{} us, as received {}/{}/{} us\n",
+                f.vehicle_id, f.sessions, f.sent, f.answered, f.by_layer.nominal, f.by_layer.watchdog_fallback,
+                w.p50_us, w.p99_us, w.max_us, r.p50_us, r.p99_us, r.max_us
             );
         }
         if let Some(p) = &self.planner {

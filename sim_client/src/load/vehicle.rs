@@ -24,6 +24,10 @@ pub(super) struct VehicleStats {
     pub queue: Histogram<u64>,
     pub solve: Histogram<u64>,
     pub transport: Histogram<u64>,
+    /// Watchdog answers given at the deadline: the planner's answer time minus the deadline.
+    pub watchdog_late_planner: Histogram<u64>,
+    /// The same answers as received: the round trip minus the deadline the request asked for.
+    pub watchdog_late_received: Histogram<u64>,
     pub timeline: Vec<TimelinePoint>,
 }
 
@@ -36,6 +40,8 @@ impl VehicleStats {
             queue: stats::histogram(),
             solve: stats::histogram(),
             transport: stats::histogram(),
+            watchdog_late_planner: stats::histogram(),
+            watchdog_late_received: stats::histogram(),
             timeline: Vec::new(),
         }
     }
@@ -65,6 +71,7 @@ impl VehicleStats {
         c.duplicated += trip.answer.extra_responses as u64;
         c.refused += trip.answer.refused.len() as u64;
         c.retried += trip.answer.retries as u64;
+        c.discarded += trip.answer.mismatched as u64;
         match kind {
             AnswerKind::InTime => c.in_time += 1,
             AnswerKind::Late => c.late += 1,
@@ -79,6 +86,11 @@ impl VehicleStats {
             stats::record(&mut self.queue, Duration::from_micros(response.queue_us.into()));
             stats::record(&mut self.solve, Duration::from_micros(response.solve_us.into()));
             stats::record(&mut self.transport, round_trip.saturating_sub(server));
+            if let Some(late) = super::flood::watchdog_lateness_us(response, trip.request.deadline_us) {
+                let _ = self.watchdog_late_planner.record(late);
+                let asked = Duration::from_micros(trip.request.deadline_us.into());
+                stats::record(&mut self.watchdog_late_received, round_trip.saturating_sub(asked));
+            }
             self.by_layer.add_response(response);
         }
         kind

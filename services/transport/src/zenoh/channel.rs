@@ -176,6 +176,30 @@ impl ZenohChannel {
         replies_seen
     }
 
+    /// Sends `payload` (bincode) as one query on [`ZENOH_PLAN_KEY`] and returns at once;
+    /// `on_reply` gets every reply's payload. For load generators that do not wait for their
+    /// answers (`sim_client load --flood-sessions`).
+    pub fn send_without_waiting(
+        &self,
+        payload: Vec<u8>,
+        on_reply: impl Fn(Vec<u8>) + Send + Sync + 'static,
+    ) -> Result<(), ChannelError> {
+        self.querier
+            .get()
+            .payload(payload)
+            .encoding(encoding(WireFormat::Bincode))
+            .callback(move |reply: Reply| {
+                if let Ok(sample) = reply.result() {
+                    on_reply(sample.payload().to_bytes().into_owned());
+                }
+            })
+            .wait()
+            .map_err(|source| ChannelError::Zenoh {
+                what: "sending a query".into(),
+                source,
+            })
+    }
+
     /// The planner instances whose liveliness tokens this channel sees, by name.
     pub fn instances(&self) -> Vec<String> {
         self.instances.live()
@@ -240,13 +264,15 @@ impl ZenohChannel {
 }
 
 impl PlanChannel for ZenohChannel {
-    /// The first valid answer wins; later answers of the same query are counted as extra
-    /// responses, those of the other query (after a retry) are discarded.
+    /// The first valid answer for this request (its vehicle id and sequence) wins; later
+    /// answers of the same query are counted as extra responses, those of the other query
+    /// (after a retry) are discarded, answers for another request are counted as mismatched.
     fn exchange(&mut self, request: PlanRequest, wait: Duration) -> Result<Answer, ChannelError> {
         let start = Instant::now();
         let deadline = start + wait;
         let retry_at = start + self.failover.retry_after;
         let payload = protocol::encode_bincode(&request);
+        let expected = (request.vehicle_id, request.sequence);
         let order = self.instances.order(request.vehicle_id, start);
         let (tx, rx) = mpsc::channel();
         self.send(0, order.first().map(String::as_str), &payload, wait, &tx);
@@ -260,6 +286,16 @@ impl PlanChannel for ZenohChannel {
             let retry_now = match event {
                 Some(Event::Reply { attempt, bytes, at }) => {
                     match self.verified(&bytes) {
+                        // Another request's answer (a stray or replayed reply on this key):
+                        // never taken, counted, as the iceoryx2 client does.
+                        Ok(response) if (response.vehicle_id, response.sequence) != expected => {
+                            tracing::warn!(
+                                expected = ?expected,
+                                got = ?(response.vehicle_id, response.sequence),
+                                "an answer for another request: ignored"
+                            );
+                            answer.mismatched += 1;
+                        }
                         Ok(response) if answered_by.is_none() => {
                             answer.response = Some(response);
                             answer.answered_at = Some(at);

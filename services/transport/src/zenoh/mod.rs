@@ -368,7 +368,7 @@ mod tests {
         }
         assert!(checked >= 6, "only {checked} files in {}", dir.display());
         assert!(connecting >= 4, "only {connecting} files connect");
-        assert_eq!(planners, 2, "planner.json5 and planner-tls.json5");
-        assert_eq!(admitting, 4, "the routers and the planners");
+        assert_eq!(planners, 3, "planner.json5, planner-local.json5 and planner-tls.json5");
+        assert_eq!(admitting, 5, "the routers and the planners");
     }
 }
