@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+pub mod instances;
+
 /// Path of a workspace binary built in the same profile as the running test.
 ///
 /// `cargo test --workspace` builds every package's binaries because each binary package

@@ -20,13 +20,11 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
-use system_tests::{free_port, python_ready, scratch_dir, signal, Process};
+use system_tests::instances::{RoutedPlanners, INSTANCES};
+use system_tests::{python_ready, scratch_dir, signal};
 use transport::zenoh::instances::rendezvous_order;
-use transport::zenoh::{ZenohChannel, ZenohTarget};
 
 /// How long the processes may take to start serving (debug builds on a shared machine).
-const STARTUP: Duration = Duration::from_secs(60);
-const INSTANCES: [&str; 2] = ["alpha", "beta"];
 /// The vehicle id of the client's built-in snapshot (`EXAMPLE_REQUEST`).
 const EXAMPLE_VEHICLE: u64 = 7;
 /// The vehicle's deadline, the client's `--timeout` per request.
@@ -43,75 +41,6 @@ fn ready() -> bool {
 
 fn client_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../clients/python")
-}
-
-/// A router and one planner per instance id, connected to it.
-struct Network {
-    router: Process,
-    endpoint: String,
-    planners: Vec<Process>,
-}
-
-impl Network {
-    fn start(tag: &str) -> Self {
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/zenoh/router.json5");
-        let router = Process::start(
-            "hmdp-router",
-            &["--config", config.to_str().unwrap(), "--listen", &endpoint],
-            &format!("{tag}-router"),
-        );
-        let planners = INSTANCES
-            .iter()
-            .map(|id| {
-                let args = [
-                    "serve",
-                    "--zenoh-connect",
-                    &endpoint,
-                    "--workers",
-                    "1",
-                    "--instance-id",
-                    id,
-                ];
-                Process::start("planner", &args, &format!("{tag}-{id}"))
-            })
-            .collect();
-        let network = Self {
-            router,
-            endpoint,
-            planners,
-        };
-        network.wait_for_instances();
-        network
-    }
-
-    fn logs(&self) -> String {
-        let mut all = format!("router:\n{}", self.router.log());
-        for (id, p) in INSTANCES.iter().zip(&self.planners) {
-            all += &format!("\n{id}:\n{}", p.log());
-        }
-        all
-    }
-
-    /// Until a vehicle (the Rust channel) gets an answer and sees both instances' tokens.
-    fn wait_for_instances(&self) {
-        let target = ZenohTarget {
-            endpoint: Some(self.endpoint.clone()),
-            ..Default::default()
-        };
-        let channel = ZenohChannel::connect(&target, STARTUP, Duration::from_millis(400))
-            .unwrap_or_else(|e| panic!("no planner answers: {e}\n{}", self.logs()));
-        let since = Instant::now();
-        while channel.instances() != INSTANCES {
-            assert!(
-                since.elapsed() < STARTUP,
-                "instances seen: {:?}\n{}",
-                channel.instances(),
-                self.logs()
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
 }
 
 /// What one client process did.
@@ -218,7 +147,9 @@ fn python_client_fails_over_from_a_stopped_instance_within_the_deadline() {
     if !ready() {
         return;
     }
-    let network = Network::start("py-failover");
+    let network = RoutedPlanners::start("py-failover");
+    // Until a vehicle gets an answer and sees both instances' tokens.
+    drop(network.vehicle(Duration::from_millis(400)));
     let dir = scratch_dir("py-failover");
     let order = rendezvous_order(EXAMPLE_VEHICLE, INSTANCES);
     let (preferred, other) = (order[0].clone(), order[1].clone());

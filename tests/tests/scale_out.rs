@@ -13,108 +13,39 @@
 //! * One instance killed (SIGKILL) under a vehicle at 10 Hz: its token goes with its
 //!   session, the vehicle's next request goes to the other instance, nothing is lost.
 
-use std::path::Path;
 use std::time::{Duration, Instant};
 
 use protocol::PlanResponse;
-use system_tests::{free_port, signal, worked_example_request, Process};
+use system_tests::instances::{RoutedPlanners, INSTANCES};
+use system_tests::{signal, worked_example_request};
 use transport::zenoh::instances::rendezvous_order;
-use transport::zenoh::{ZenohChannel, ZenohTarget};
+use transport::zenoh::ZenohChannel;
 use transport::{Answer, PlanChannel};
 
 /// How long the processes may take to start serving (debug builds on a shared machine).
-const STARTUP: Duration = Duration::from_secs(60);
-const INSTANCES: [&str; 2] = ["alpha", "beta"];
 /// A vehicle's deadline (what `sim_client` waits).
 const DEADLINE: Duration = Duration::from_millis(400);
 
-/// A router and one planner per instance id, connected to it.
-struct Network {
-    router: Process,
-    endpoint: String,
-    planners: Vec<Process>,
-}
-
-impl Network {
-    fn start(tag: &str) -> Self {
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/zenoh/router.json5");
-        let router = Process::start(
-            "hmdp-router",
-            &["--config", config.to_str().unwrap(), "--listen", &endpoint],
-            &format!("{tag}-router"),
-        );
-        let planners = INSTANCES
-            .iter()
-            .map(|id| {
-                let args = [
-                    "serve",
-                    "--zenoh-connect",
-                    &endpoint,
-                    "--workers",
-                    "1",
-                    "--instance-id",
-                    id,
-                ];
-                Process::start("planner", &args, &format!("{tag}-{id}"))
-            })
-            .collect();
-        Self {
-            router,
-            endpoint,
-            planners,
-        }
-    }
-
-    fn logs(&self) -> String {
-        let mut all = format!("router:\n{}", self.router.log());
-        for (id, p) in INSTANCES.iter().zip(&self.planners) {
-            all += &format!("\n{id}:\n{}", p.log());
-        }
-        all
-    }
-
-    /// A vehicle's channel, once it sees both instances' liveliness tokens.
-    fn vehicle(&self) -> ZenohChannel {
-        let target = ZenohTarget {
-            endpoint: Some(self.endpoint.clone()),
-            ..Default::default()
-        };
-        let channel = ZenohChannel::connect(&target, STARTUP, DEADLINE)
-            .unwrap_or_else(|e| panic!("no planner answers: {e}\n{}", self.logs()));
-        let since = Instant::now();
-        while channel.instances() != INSTANCES {
+/// Stops every planner and returns each one's final statistics.
+fn final_statistics(network: &mut RoutedPlanners) -> Vec<serde_json::Value> {
+    let logs = network.logs();
+    network
+        .planners
+        .iter_mut()
+        .map(|p| {
             assert!(
-                since.elapsed() < STARTUP,
-                "instances seen: {:?}\n{}",
-                channel.instances(),
-                self.logs()
+                p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
+                "{logs}"
             );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        channel
-    }
-
-    /// Stops every planner and returns each one's final statistics.
-    fn final_statistics(&mut self) -> Vec<serde_json::Value> {
-        let logs = self.logs();
-        self.planners
-            .iter_mut()
-            .map(|p| {
-                assert!(
-                    p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
-                    "{logs}"
-                );
-                let log = p.log();
-                let stats = log
-                    .lines()
-                    .find(|l| l.contains("final statistics"))
-                    .and_then(|l| l.split("stats=").nth(1))
-                    .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
-                serde_json::from_str(stats.trim()).unwrap()
-            })
-            .collect()
-    }
+            let log = p.log();
+            let stats = log
+                .lines()
+                .find(|l| l.contains("final statistics"))
+                .and_then(|l| l.split("stats=").nth(1))
+                .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
+            serde_json::from_str(stats.trim()).unwrap()
+        })
+        .collect()
 }
 
 /// `vehicle`'s request `sequence`, answered with a decision for it, exactly once.
@@ -139,7 +70,7 @@ fn ask(channel: &mut ZenohChannel, vehicle: u64, sequence: u64) -> Answer {
 fn two_instances_share_the_vehicles_and_answer_each_request_once() {
     const VEHICLES: u64 = 16;
     const REQUESTS: u64 = 10;
-    let mut network = Network::start("share");
+    let mut network = RoutedPlanners::start("share");
     // Which instance each vehicle should reach; the ids are fixed, so is the split.
     let mut expected = [0u64; 2];
     for vehicle in 1..=VEHICLES {
@@ -154,7 +85,7 @@ fn two_instances_share_the_vehicles_and_answer_each_request_once() {
             .map(|t| {
                 let network = &network;
                 scope.spawn(move || {
-                    let mut channel = network.vehicle();
+                    let mut channel = network.vehicle(DEADLINE);
                     let mut retries = 0;
                     for sequence in 1..=REQUESTS {
                         for vehicle in (1..=VEHICLES).filter(|v| v % 4 == t) {
@@ -167,8 +98,7 @@ fn two_instances_share_the_vehicles_and_answer_each_request_once() {
             .collect();
         threads.into_iter().map(|t| t.join().expect("vehicle thread")).sum()
     });
-    let answered: Vec<u64> = network
-        .final_statistics()
+    let answered: Vec<u64> = final_statistics(&mut network)
         .iter()
         .map(|s| s["answered"].as_u64().expect("answered"))
         .collect();
@@ -217,8 +147,8 @@ fn retried(answers: &[(u64, Instant, usize)]) -> Vec<u64> {
 #[test]
 fn a_killed_instance_costs_its_vehicle_nothing() {
     const VEHICLE: u64 = 42;
-    let mut network = Network::start("kill");
-    let mut channel = network.vehicle();
+    let mut network = RoutedPlanners::start("kill");
+    let mut channel = network.vehicle(DEADLINE);
     let preferred = rendezvous_order(VEHICLE, INSTANCES)[0].clone();
     let index = INSTANCES.iter().position(|i| *i == preferred).unwrap();
     let answers = drive(&mut channel, VEHICLE, 30, |sequence| {
@@ -240,8 +170,8 @@ fn a_killed_instance_costs_its_vehicle_nothing() {
 #[test]
 fn a_hung_instance_costs_its_vehicle_less_than_a_second() {
     const VEHICLE: u64 = 42;
-    let mut network = Network::start("hang");
-    let mut channel = network.vehicle();
+    let mut network = RoutedPlanners::start("hang");
+    let mut channel = network.vehicle(DEADLINE);
     let preferred = &rendezvous_order(VEHICLE, INSTANCES)[0];
     let index = INSTANCES.iter().position(|i| i == preferred).unwrap();
     let pid = network.planners[index].id();
@@ -284,7 +214,7 @@ fn a_hung_instance_costs_its_vehicle_less_than_a_second() {
     );
     // Its fresh answers (not the stale ones to what waited during the stop): the requests
     // before the stop and some after SIGCONT.
-    let stats = &network.final_statistics()[index];
+    let stats = &final_statistics(&mut network)[index];
     let fresh = stats["answered"].as_u64().unwrap() - stats["by_layer"]["stale_fallback"].as_u64().unwrap();
     eprintln!("{preferred}: {fresh} fresh answers, statistics {stats}");
     assert!(
