@@ -54,7 +54,8 @@ fn keygen(dir: &Path, name: &str) -> (PathBuf, PathBuf) {
 
 /// The forger: a Zenoh client session of the planner's network answering every plan query
 /// at once with a nominal-looking decision for the asking vehicle, alternately unsigned and
-/// signed with its own key. Counts what it sent.
+/// signed with its own key, for the request's sequence minus `replay` (0: for the very
+/// request; 1: an old answer replayed). Counts what it sent.
 struct Forger {
     _session: zenoh::Session,
     _queryable: zenoh::query::Queryable<()>,
@@ -62,7 +63,7 @@ struct Forger {
 }
 
 impl Forger {
-    fn start(endpoint: &str) -> Self {
+    fn start(endpoint: &str, replay: u64) -> Self {
         let config = transport::zenoh::client_config(endpoint).unwrap();
         let session = zenoh::open(config).wait().expect("forger session");
         let own_key = ResponseSigner::from_seed(&[0x66; 32]);
@@ -82,6 +83,7 @@ impl Forger {
                     accel_mps2: FORGED_ACCEL,
                     target_speed_mps: 40.0,
                 };
+                let sequence = sequence.wrapping_sub(replay);
                 let mut forged = PlanResponse::decided(vehicle_id, sequence, decided, 900, 10);
                 let n = counter.fetch_add(1, Ordering::SeqCst);
                 if n % 2 == 1 {
@@ -107,6 +109,34 @@ fn forged(response: &PlanResponse) -> bool {
     matches!(response.outcome.get(), Ok(OutcomeRef::Decided(d)) if d.setpoint.accel_mps2 == FORGED_ACCEL)
 }
 
+/// Without a key, the Zenoh channel still takes only the answer to the request it sent: a
+/// replayed answer (the vehicle's previous sequence) arriving first is counted as
+/// mismatched and never taken.
+#[test]
+fn a_replayed_answer_is_never_taken_for_the_current_request() {
+    let planner = ZenohPlanner::start("replayed", &[]);
+    let mut vehicle = planner.vehicle(None);
+    let forger = Forger::start(&planner.endpoint, 1);
+    let mut mismatched = 0;
+    for sequence in 1..=20 {
+        let answer = vehicle
+            .exchange(worked_example_request(9, sequence), Duration::from_secs(3))
+            .unwrap();
+        mismatched += answer.mismatched;
+        let response = answer
+            .response
+            .unwrap_or_else(|| panic!("request {sequence}: no answer\n{}", planner.log()));
+        assert_eq!((response.vehicle_id, response.sequence), (9, sequence));
+        assert!(!forged(&response), "request {sequence}: took a replayed answer");
+    }
+    assert!(forger.sent.load(Ordering::SeqCst) > 0);
+    assert!(
+        mismatched > 0,
+        "no replayed answer reached the vehicle\n{}",
+        planner.log()
+    );
+}
+
 #[test]
 fn vehicles_with_the_key_refuse_a_racing_forger_and_take_only_the_planner() {
     let dir = scratch_dir("forged");
@@ -115,7 +145,7 @@ fn vehicles_with_the_key_refuse_a_racing_forger_and_take_only_the_planner() {
     let planner = ZenohPlanner::start("forged", &["--signing-key", secret_arg]);
     let verifier = ResponseVerifier::from_file(&public).unwrap();
     let honest = planner.vehicle(Some(verifier.clone()));
-    let forger = Forger::start(&planner.endpoint);
+    let forger = Forger::start(&planner.endpoint, 0);
 
     // The attack is real: a vehicle without the key gets the forgeries.
     let naive = planner.vehicle(None);
