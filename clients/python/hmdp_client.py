@@ -257,6 +257,19 @@ def _response_of(reply):
     return response
 
 
+def _refusal(response, verifier, refused):
+    """The signature error that refuses `response` (also appended to `refused`), or None."""
+    if verifier is None:
+        return None
+    try:
+        verifier.verify(response)
+    except hmdp_signing.SignatureError as e:
+        if refused is not None:
+            refused.append(e)
+        return e
+    return None
+
+
 def _ask_instances(session, request, payload, order, timeout_s, verifier, refused, instances):
     """One request to its vehicle's instance, `order[0]`, and once more to `order[1]` when no
     valid answer came within `instances.retry_after_s` (or that query ended without one).
@@ -310,14 +323,10 @@ def _ask_instances(session, request, payload, order, timeout_s, verifier, refuse
                     print(f"an answer for another request ignored: {response.get('vehicle_id')}/"
                           f"{response.get('sequence')}", file=sys.stderr)
                     continue
-                if verifier is not None:
-                    try:
-                        verifier.verify(response)
-                    except hmdp_signing.SignatureError as e:
-                        why = e
-                        if refused is not None:
-                            refused.append(e)
-                        continue
+                error = _refusal(response, verifier, refused)
+                if error is not None:
+                    why = error
+                    continue
                 instances.last_instance = order[attempt]
                 instances.last_retries = sent - 1
                 return response
@@ -387,14 +396,10 @@ def ask(session, request, timeout_s, verifier=None, refused=None, instances=None
                 break
             raise NoAnswer(f"error reply: {error}")
         response = _response_of(reply)
-        if verifier is not None:
-            try:
-                verifier.verify(response)
-            except hmdp_signing.SignatureError as e:
-                why = e
-                if refused is not None:
-                    refused.append(e)
-                continue
+        error = _refusal(response, verifier, refused)
+        if error is not None:
+            why = error
+            continue
         return response
     if why is not None:
         raise NoAnswer(f"no verified answer within {timeout_s} s (refused: {why})")

@@ -180,3 +180,18 @@ pub fn decode_json<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
 pub fn decode_json_str<T: WireMessage>(text: &str) -> Result<T, WireError> {
     decode_json(text.as_bytes())
 }
+
+/// The worked example of `docs/protocol.md` (3 lanes, one SV 30 m ahead) as `vehicle_id`'s
+/// request number `sequence`: what tests and load tools send when the scene does not matter.
+pub fn worked_example_request(vehicle_id: u64, sequence: u64) -> PlanRequest {
+    let mut r: PlanRequest = decode_json_str(
+        r#"{"version":3,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
+            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
+            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
+            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
+    )
+    .expect("the documented example decodes");
+    r.vehicle_id = vehicle_id;
+    r.sequence = sequence;
+    r
+}

@@ -29,8 +29,8 @@ pub mod staleness;
 mod validate;
 
 pub use codec::{
-    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty, WireError,
-    WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
+    decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty,
+    worked_example_request, WireError, WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
 };
 #[cfg(feature = "decision")]
 pub use convert::{answer, fallback_answer};

@@ -159,20 +159,7 @@ pub fn signal(pid: u32, name: &str) {
     assert!(status.success(), "kill -{name} {pid}");
 }
 
-/// The worked example of docs/protocol.md (3 lanes, one SV 30 m ahead), as `vehicle_id`'s
-/// request number `sequence`.
-pub fn worked_example_request(vehicle_id: u64, sequence: u64) -> protocol::PlanRequest {
-    let mut r: protocol::PlanRequest = protocol::decode_json_str(
-        r#"{"version":3,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
-            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
-            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
-            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
-    )
-    .expect("the documented example decodes");
-    r.vehicle_id = vehicle_id;
-    r.sequence = sequence;
-    r
-}
+pub use protocol::worked_example_request;
 
 /// Runs `sim_client case1 --out <dir>/<name> <args>` and returns its `decisions.csv`;
 /// `planner_log` is shown if the run fails.
@@ -320,4 +307,48 @@ impl TlsFiles {
     pub fn cert(&self, file: &str) -> PathBuf {
         self.dir.join("tls").join(file)
     }
+}
+
+/// What a normal vehicle got for its requests while the network was under attack.
+#[derive(Debug, Default)]
+pub struct VictimFigures {
+    pub sent: u64,
+    /// Its own answer (vehicle id and sequence match) within a second.
+    pub answered: u64,
+    /// Of those, watchdog fallbacks (the planner did not decide in time, or refused to queue).
+    pub watchdog: u64,
+}
+
+/// A normal vehicle (id 7): `requests` requests at 20 Hz, each waited for up to 1 s; stops
+/// early if `alive` (asked every 20 requests) says a server process died.
+pub fn normal_vehicle(
+    channel: &transport::zenoh::ZenohChannel,
+    requests: u64,
+    mut alive: impl FnMut() -> bool,
+) -> VictimFigures {
+    use protocol::{decode_bincode, encode_bincode, Layer, PlanResponse, WireFormat};
+    let mut figures = VictimFigures::default();
+    for sequence in 1..=requests {
+        if sequence % 20 == 0 && !alive() {
+            break;
+        }
+        let started = std::time::Instant::now();
+        let mut request = worked_example_request(7, sequence);
+        request.deadline_us = 380_000;
+        figures.sent += 1;
+        let replies = channel.ask_raw(&encode_bincode(&request), WireFormat::Bincode, Duration::from_secs(1));
+        let own = replies
+            .iter()
+            .filter_map(|(bytes, _)| decode_bincode::<PlanResponse>(bytes).ok())
+            .find(|r| (r.vehicle_id, r.sequence) == (7, sequence));
+        if let Some(response) = own {
+            figures.answered += 1;
+            let layer = response.outcome.as_decided().and_then(|d| d.layer().ok());
+            if layer == Some(Layer::WatchdogFallback) {
+                figures.watchdog += 1;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50).saturating_sub(started.elapsed()));
+    }
+    figures
 }

@@ -14,11 +14,10 @@
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use protocol::{decode_bincode, encode_bincode, Layer, PlanResponse, WireFormat, ZENOH_PLAN_KEY};
-use system_tests::{worked_example_request, ZenohPlanner as Planner};
-use transport::zenoh::ZenohChannel;
+use protocol::{encode_bincode, ZENOH_PLAN_KEY};
+use system_tests::{normal_vehicle, worked_example_request, ZenohPlanner as Planner};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
@@ -47,41 +46,6 @@ fn proc_status(pid: u32, field: &str) -> String {
         .unwrap_or_else(|| panic!("no {field} in /proc/{pid}/status"))
         .trim()
         .to_string()
-}
-
-/// What the normal vehicle got for its requests.
-#[derive(Debug, Default)]
-struct VictimFigures {
-    sent: u64,
-    /// Its own answer (vehicle id and sequence match) within a second.
-    answered: u64,
-    /// Of those, watchdog fallbacks (the planner did not decide in time, or refused to queue).
-    watchdog: u64,
-}
-
-/// A normal vehicle (id 7): `requests` requests at 20 Hz, each waited for up to 1 s.
-fn normal_vehicle(channel: &ZenohChannel, requests: u64) -> VictimFigures {
-    let mut figures = VictimFigures::default();
-    for sequence in 1..=requests {
-        let started = Instant::now();
-        let mut request = worked_example_request(7, sequence);
-        request.deadline_us = 380_000;
-        figures.sent += 1;
-        let replies = channel.ask_raw(&encode_bincode(&request), WireFormat::Bincode, Duration::from_secs(1));
-        let own = replies
-            .iter()
-            .filter_map(|(bytes, _)| decode_bincode::<PlanResponse>(bytes).ok())
-            .find(|r| (r.vehicle_id, r.sequence) == (7, sequence));
-        if let Some(response) = own {
-            figures.answered += 1;
-            let layer = response.outcome.as_decided().and_then(|d| d.layer().ok());
-            if layer == Some(Layer::WatchdogFallback) {
-                figures.watchdog += 1;
-            }
-        }
-        std::thread::sleep(Duration::from_millis(50).saturating_sub(started.elapsed()));
-    }
-    figures
 }
 
 #[test]
@@ -136,7 +100,7 @@ fn oversized_queries_are_dropped_unbuffered_and_memory_stays_bounded() {
     eprintln!("planner peak RSS: {before_kb} kB before, {after_kb} kB after four 100 MB queries");
     assert_eq!(answers, vec![0; 4], "an oversized query reached the planner");
     // The service goes on.
-    let figures = normal_vehicle(&channel, 10);
+    let figures = normal_vehicle(&channel, 10, || true);
     assert_eq!(figures.answered, 10, "{figures:?}\n{}", planner.log());
     assert!(
         after_kb < 100 * 1024,
@@ -201,7 +165,7 @@ fn a_peer_that_never_reads_costs_other_vehicles_nothing() {
     .expect("attacker starts");
     // Let the attacker's replies pile up in its socket buffers.
     std::thread::sleep(Duration::from_secs(3));
-    let figures = normal_vehicle(&channel, 200);
+    let figures = normal_vehicle(&channel, 200, || true);
     assert!(attacker.is_running(), "the attacker stopped by itself");
     attacker.kill();
     eprintln!("normal vehicle beside a never-reading peer: {figures:?}");
@@ -241,7 +205,7 @@ fn a_flooding_vehicle_does_not_starve_another() {
         })
         .collect();
     std::thread::sleep(Duration::from_secs(1));
-    let figures = normal_vehicle(&channel, 100);
+    let figures = normal_vehicle(&channel, 100, || true);
     stop.store(true, Ordering::Relaxed);
     for f in flooders {
         f.join().unwrap();

@@ -24,10 +24,10 @@
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use protocol::{decode_bincode, encode_bincode, Layer, PlanResponse, WireFormat, ZENOH_PLAN_KEY};
-use system_tests::{scratch_dir, worked_example_request, Process, TlsFiles};
+use protocol::ZENOH_PLAN_KEY;
+use system_tests::{normal_vehicle, scratch_dir, worked_example_request, Process, TlsFiles};
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
@@ -86,45 +86,6 @@ fn never_reading_tls_attacker() {
         std::thread::sleep(Duration::from_secs(1));
         eprintln!("attacker sent {}", sent.load(Ordering::Relaxed));
     }
-}
-
-/// What the normal vehicle got for its requests.
-#[derive(Debug, Default)]
-struct VictimFigures {
-    sent: u64,
-    /// Its own answer (vehicle id and sequence match) within a second.
-    answered: u64,
-    /// Of those, watchdog fallbacks.
-    watchdog: u64,
-}
-
-/// A normal vehicle (id 7): `REQUESTS` requests at 20 Hz, each waited for up to 1 s; stops
-/// early if `alive` says a server process died.
-fn normal_vehicle(channel: &ZenohChannel, mut alive: impl FnMut() -> bool) -> VictimFigures {
-    let mut figures = VictimFigures::default();
-    for sequence in 1..=REQUESTS {
-        if sequence % 20 == 0 && !alive() {
-            break;
-        }
-        let started = Instant::now();
-        let mut request = worked_example_request(7, sequence);
-        request.deadline_us = 380_000;
-        figures.sent += 1;
-        let replies = channel.ask_raw(&encode_bincode(&request), WireFormat::Bincode, Duration::from_secs(1));
-        let own = replies
-            .iter()
-            .filter_map(|(bytes, _)| decode_bincode::<PlanResponse>(bytes).ok())
-            .find(|r| (r.vehicle_id, r.sequence) == (7, sequence));
-        if let Some(response) = own {
-            figures.answered += 1;
-            let layer = response.outcome.as_decided().and_then(|d| d.layer().ok());
-            if layer == Some(Layer::WatchdogFallback) {
-                figures.watchdog += 1;
-            }
-        }
-        std::thread::sleep(Duration::from_millis(50).saturating_sub(started.elapsed()));
-    }
-    figures
 }
 
 /// `file` without its QoS rule if `WITHOUT_QOS` asks for it (the rule is the last part of
@@ -198,7 +159,7 @@ fn never_reading_tls_peers_kill_nothing_and_cost_other_vehicles_nothing() {
     .expect("attacker starts");
     // Let the attacker's replies pile up in its socket buffers.
     std::thread::sleep(Duration::from_secs(3));
-    let figures = normal_vehicle(&channel, || router.is_running() && planner.is_running());
+    let figures = normal_vehicle(&channel, REQUESTS, || router.is_running() && planner.is_running());
     let attacker_running = attacker.is_running();
     attacker.kill();
     let sent = attacker_sent(&attacker_log);

@@ -58,15 +58,7 @@ struct Tally {
 
 /// The worked example of docs/protocol.md as request `sequence` of `vehicle_id`.
 fn flood_request(vehicle_id: u64, sequence: u64, deadline: Duration) -> PlanRequest {
-    let mut r: PlanRequest = protocol::decode_json_str(
-        r#"{"version":3,"vehicle_id":0,"sequence":0,"timestamp_ns":1000000000,
-            "road":{"lanes":3,"lane_width_m":3.5,"speed_limit_mps":30.0},
-            "ego":{"x_m":0.0,"y_m":3.5,"v_mps":25.0,"desired_speed_mps":28.0,"maneuver":{"lane":2,"beta":0}},
-            "svs":[{"id":1,"x_m":30.0,"y_m":3.5,"v_mps":20.0,"a_mps2":-0.5}]}"#,
-    )
-    .expect("the documented example decodes");
-    r.vehicle_id = vehicle_id;
-    r.sequence = sequence;
+    let mut r = protocol::worked_example_request(vehicle_id, sequence);
     r.deadline_us = u32::try_from(deadline.as_micros()).unwrap_or(u32::MAX);
     r.sent_at_ns = protocol::unix_now_ns();
     r
