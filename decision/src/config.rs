@@ -175,6 +175,14 @@ pub struct Prediction {
     /// An SV moving sideways faster than this is predicted in the lane it moves towards
     /// from the first step (m/s); 0 switches this off.
     pub lateral_velocity_threshold_mps: f64,
+    /// Where a laterally moving SV stops holding the lanes it occupies now once its
+    /// extrapolated position reaches the next lane centre (docs/formulation-notes.md,
+    /// "Lateral prediction").
+    pub lateral_departure: LateralDeparture,
+    /// A departure is extrapolated at this share of the measured lateral velocity: in the
+    /// second half of a smooth lane change the lateral speed falls, and the constant-speed
+    /// extrapolation puts the SV in the next lane 1.1-2.4 times sooner than it gets there.
+    pub departure_speed_share: f64,
     /// While a branch keeps the SV's measured longitudinal state it continues at the measured
     /// acceleration (stopping at zero speed), not at the state's representative one: a leader
     /// easing off at -1 m/s^2 is otherwise predicted at `ego.decel_mps2` (-3) in its most
@@ -195,6 +203,8 @@ impl Default for Prediction {
             noise_diag: [0.25, 0.04, 0.25],
             epsilon: 0.05,
             lateral_velocity_threshold_mps: 0.2,
+            lateral_departure: LateralDeparture::Always,
+            departure_speed_share: 0.75,
             measured_accel_while_keeping: true,
         }
     }
@@ -374,6 +384,21 @@ impl Default for Recovery {
     fn default() -> Self {
         Self { gamma: 0.1 }
     }
+}
+
+/// Which rows see an SV that moves sideways leave the lanes it occupies now.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LateralDeparture {
+    /// None: the SV holds every lane it occupies now for the whole horizon.
+    Never,
+    /// The hysteresis trigger and band: an SV leaving the ego's lane is not followed any
+    /// more once it is predicted in the next lane, while the hard rows keep it in the lane
+    /// until the next decision sees it gone.
+    Band,
+    /// Every row, the hard ones too.
+    #[default]
+    Always,
 }
 
 /// Which backend solves the decision problem.

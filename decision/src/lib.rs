@@ -29,7 +29,7 @@ pub mod scenario;
 pub mod types;
 pub mod validate;
 
-pub use config::{Backend, PlannerConfig};
+pub use config::{Backend, LateralDeparture, PlannerConfig};
 pub use error::{ConfigError, DecisionError, InputError, SolverError};
 pub use highs_solver::InterruptHandle;
 pub use planner::{fallback_only, Planner};

@@ -2,7 +2,7 @@
 //! solve — perception window, IDM margins, hysteresis refresh, SV scenario trees, and the
 //! safety data of every SV.
 
-use crate::config::{CostWeights, PlannerConfig};
+use crate::config::{CostWeights, LateralDeparture, PlannerConfig};
 use crate::hysteresis;
 use crate::idm::{hard_margin, idm_distance, linearised_margins, thresholds};
 use crate::lanes::{lanes_at, nearest_lane, LaneSet};
@@ -347,14 +347,18 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         config.prediction.measured_accel_while_keeping.then_some(sv.a_mps2),
     );
     let mut branches = predict_branches_from(config, &ctx.kin, road.lanes, sv_start, measured, sv_occ);
-    widen_by_lateral_motion(config, road, sv, &mut branches);
+    let departing = predict_lateral_motion(config, road, sv, sv_start.lane, &mut branches);
     let mean_x: Vec<f64> = (0..horizon)
         .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())
         .collect();
     let mean_v: Vec<f64> = (0..horizon)
         .map(|h| branches.iter().map(|b| b.probability * b.v[h]).sum())
         .collect();
-    let mean_occupancy = branches[0].occupancy.clone();
+    // The occupancy the hysteresis follows; see `LateralDeparture`.
+    let mean_occupancy = match departing {
+        Some(d) if config.prediction.lateral_departure != LateralDeparture::Never => d,
+        _ => branches[0].occupancy.clone(),
+    };
     let (margin, slope) = if config.idm.speed_dependent {
         let speeds: Vec<Vec<f64>> = branches.iter().map(|b| b.v.clone()).collect();
         linearised_margins(&config.idm, ahead, v0, sv.v_mps, &speeds, &ctx.sigmas)
@@ -477,20 +481,46 @@ fn lane_values(config: &PlannerConfig, s: &Situation) -> Vec<f64> {
 
 /// An SV moving sideways is predicted along its lateral velocity: each branch also occupies
 /// the lanes of the linearly extrapolated position, so a drifting SV is in the ego's lane in
-/// the prediction before it leaves its own lane centre.
-fn widen_by_lateral_motion(config: &PlannerConfig, road: &Road, sv: &SvObservation, branches: &mut [Branch]) {
+/// the prediction before it leaves its own lane centre. Returned: the most probable branch's
+/// occupancy *departing*, i.e. the extrapolated position's lanes and those its own lateral
+/// actions move it into, without the lanes it occupies now; it leaves a lane only once also
+/// `prediction.departure_speed_share` of its lateral velocity has taken it out. With
+/// `LateralDeparture::Always` every branch is departing too.
+fn predict_lateral_motion(
+    config: &PlannerConfig,
+    road: &Road,
+    sv: &SvObservation,
+    start_lane: u8,
+    branches: &mut [Branch],
+) -> Option<Vec<LaneSet>> {
     let threshold = config.prediction.lateral_velocity_threshold_mps;
     if threshold <= 0.0 || sv.vy_mps.abs() < threshold {
-        return;
+        return None;
     }
     let tol = config.vehicle.lane_centre_tolerance_m;
     let (lo, hi) = (road.lane_centre(road.lanes), road.lane_centre(1));
+    let mut departing_first = None;
     for b in branches.iter_mut() {
-        for (h, occ) in b.occupancy.iter_mut().enumerate() {
-            let y = (sv.y_m + sv.vy_mps * config.timing.step_s * (h + 1) as f64).clamp(lo, hi);
-            if let Ok(lanes) = lanes_at(road, y, tol) {
-                *occ = occ.union(lanes);
+        let mut moved = LaneSet::EMPTY;
+        let mut departing = Vec::with_capacity(b.occupancy.len());
+        for h in 0..b.occupancy.len() {
+            let lane = b.maneuvers[h].lane;
+            if lane != start_lane {
+                moved = moved.with(lane);
             }
+            let t = config.timing.step_s * (h + 1) as f64;
+            let at = |share: f64| {
+                lanes_at(road, (sv.y_m + share * sv.vy_mps * t).clamp(lo, hi), tol).unwrap_or(LaneSet::EMPTY)
+            };
+            // Entering a lane at the full lateral velocity, leaving one at the slower share.
+            let ahead = at(1.0);
+            b.occupancy[h] = b.occupancy[h].union(ahead);
+            departing.push(moved.union(ahead).union(at(config.prediction.departure_speed_share)));
         }
+        if config.prediction.lateral_departure == LateralDeparture::Always {
+            b.occupancy.clone_from(&departing);
+        }
+        departing_first.get_or_insert(departing);
     }
+    departing_first
 }
