@@ -421,6 +421,17 @@ impl Backend {
     }
 }
 
+/// Solver of the exact evaluation's LP over one sequence's accelerations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum EvaluationLp {
+    /// The dense dual simplex of `small_lp.rs` (HiGHS when it gives no verdict).
+    #[default]
+    Dense,
+    /// HiGHS, the reference.
+    Highs,
+}
+
 /// Solver settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -441,6 +452,8 @@ pub struct SolverSettings {
     pub branch_lps: usize,
     /// Tolerance when checking a plan against the exact constraints, m.
     pub feasibility_tolerance: f64,
+    /// Solver of the exact evaluation's LP (`"dense"` or `"highs"`; same optimum).
+    pub evaluation_lp: EvaluationLp,
     /// Further HiGHS options by name (`[solver.highs_options]`, e.g. `mip_detect_symmetry =
     /// false`), set after the planner's own; an unknown name or a value of the wrong type
     /// fails `Planner::new`. The planner's settings (quiet, one thread, presolve off, time
@@ -479,6 +492,7 @@ impl Default for SolverSettings {
             relaxation_first: true,
             branch_lps: 8,
             feasibility_tolerance: 1e-6,
+            evaluation_lp: EvaluationLp::Dense,
             highs_options: std::collections::BTreeMap::new(),
         }
     }

@@ -5,14 +5,15 @@
 //! known. With fixed accelerations (the discrete maps) every slack then has a closed-form
 //! optimal value. With the continuous input `u`, what is left is a small LP over the
 //! accelerations of the fixed sequence (at most `H` of them, bounded by their states); it is
-//! written here from the rollout directly, independent of the MILP's encoding, and solved
-//! with HiGHS. Its accelerations are then scored by the closed form, so both paths share one
+//! written from the rollout directly, independent of the MILP's encoding (`accel_lp.rs`), and
+//! solved by a dense simplex (`small_lp.rs`), or by HiGHS as the reference. Its accelerations are then scored by the closed form, so both paths share one
 //! definition of the cost.
 
-use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
 use crate::model::{rollout, Rollout};
 use crate::problem::Problem;
 use crate::types::Action;
+
+pub mod accel_lp;
 
 /// Which layer's constraints apply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -186,61 +187,6 @@ fn score(problem: &Problem, r: Rollout, rows: &[Requirement], mode: Mode, tol: f
     })
 }
 
-/// Best accelerations for the fixed sequence `r` (an LP), or `None` when no acceleration
-/// within the states' ranges meets the rows.
-fn best_accelerations(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> Option<Vec<f64>> {
-    let kin = &problem.kin;
-    let w = &problem.weights;
-    let (h_len, dt, v0) = (problem.horizon, kin.dt, problem.ego.v);
-    let mut m = MipModel::default();
-    let u: Vec<usize> = r
-        .maneuvers
-        .iter()
-        .map(|mv| {
-            let (lo, hi) = kin.bounds_of(mv.beta);
-            m.add_col(0.0, lo, hi, false)
-        })
-        .collect();
-    for h in 0..h_len {
-        let mut speed: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, dt)).collect();
-        m.add_row(-v0, problem.speed_cap - v0, &mut speed.clone());
-        let terminal = if h + 1 == h_len { w.w_speed_terminal } else { 0.0 };
-        let dev = m.add_col(w.w_speed + terminal, 0.0, f64::INFINITY, false);
-        speed.push((dev, 1.0));
-        m.add_row(problem.desired_speed - v0, f64::INFINITY, &mut speed);
-        let mut down: Vec<(usize, f64)> = u[..=h].iter().map(|&c| (c, -dt)).collect();
-        down.push((dev, 1.0));
-        m.add_row(v0 - problem.desired_speed, f64::INFINITY, &mut down);
-        let brake = m.add_col(w.w_brake, 0.0, f64::INFINITY, false);
-        m.add_row(0.0, f64::INFINITY, &mut [(brake, 1.0), (u[h], 1.0)]);
-        let hard = m.add_col(w.w_hard_brake, 0.0, f64::INFINITY, false);
-        m.add_row(problem.comfort_decel, f64::INFINITY, &mut [(hard, 1.0), (u[h], 1.0)]);
-        let firm = m.add_col(w.w_firm_brake, 0.0, f64::INFINITY, false);
-        m.add_row(problem.firm_decel, f64::INFINITY, &mut [(firm, 1.0), (u[h], 1.0)]);
-    }
-    let cells = problem.svs.len() * h_len;
-    let (mut hys, mut glob) = (vec![None; cells], vec![None; cells]);
-    for row in rows {
-        let cell = row.sv * h_len + row.step;
-        let c = &problem.svs[row.sv];
-        let mut terms: Vec<(usize, f64)> = row.coef.iter().enumerate().map(|(j, &k)| (u[j], k)).collect();
-        if row.band {
-            let col = *hys[cell].get_or_insert_with(|| m.add_col(w.w_slack, 0.0, c.slack_bound(), false));
-            terms.push((col, 1.0));
-        }
-        if mode == Mode::Relaxed {
-            let col = *glob[cell].get_or_insert_with(|| m.add_col(w.w_global, 0.0, c.relax_bound, false));
-            terms.push((col, 1.0));
-        }
-        m.add_row(row.rhs, f64::INFINITY, &mut terms);
-    }
-    let result = with_thread_lp(|solver| solver.solve(&m, None)).expect("HiGHS LP of the exact evaluation");
-    match (result.status, result.columns) {
-        (MipStatus::Optimal, Some(cols)) => Some(u.iter().map(|&c| cols[c]).collect()),
-        _ => None,
-    }
-}
-
 /// Evaluate `actions`; `None` if `clip` discards an action or a constraint cannot be met.
 pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Evaluation> {
     let r = rollout(&problem.kin, problem.lanes, &problem.ego, actions)?;
@@ -248,10 +194,10 @@ pub fn evaluate(problem: &Problem, actions: &[Action], mode: Mode) -> Option<Eva
     if !problem.kin.is_continuous() {
         return score(problem, r, &rows, mode, problem.tolerance);
     }
-    let accel = best_accelerations(problem, &r, &rows, mode)?;
+    let accel = accel_lp::best(problem, &r, &rows, mode)?.accel;
     let r = r.with_accelerations(&problem.kin, &problem.ego, &accel);
-    // The LP's point meets its rows within HiGHS's feasibility tolerance (1e-7 on rows that
-    // carry metres); score it with a little more room than that.
+    // The LP's point meets its rows within the solvers' feasibility tolerances (at most 1e-7
+    // on rows that carry metres); score it with a little more room than that.
     score(problem, r, &rows, mode, problem.tolerance.max(1e-5))
 }
 

@@ -26,6 +26,7 @@ pub mod model;
 pub mod planner;
 pub mod problem;
 pub mod scenario;
+pub mod small_lp;
 pub mod types;
 pub mod validate;
 

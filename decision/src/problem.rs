@@ -127,6 +127,8 @@ pub struct Problem {
     pub lane_value: Vec<f64>,
     pub svs: Vec<SvConstraint>,
     pub tolerance: f64,
+    /// Solver of the exact evaluation's LP.
+    pub evaluation_lp: crate::config::EvaluationLp,
 }
 
 /// A problem with the memory the refresh produced.
@@ -234,6 +236,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         lane_value: lane_values(config, s),
         svs,
         tolerance: config.solver.feasibility_tolerance,
+        evaluation_lp: config.solver.evaluation_lp,
     };
     Prepared {
         problem,

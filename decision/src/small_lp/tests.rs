@@ -1,0 +1,201 @@
+//! The dense simplex against HiGHS on hand-made degenerate LPs and on random ones.
+
+use super::*;
+use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const INF: f64 = f64::INFINITY;
+
+/// HiGHS's verdict on the same LP: `Some(objective)` or `None` (infeasible).
+fn by_highs(lp: &SmallLp) -> Option<f64> {
+    let mut m = MipModel::default();
+    for c in 0..lp.num_cols() {
+        let (lo, hi) = lp.bounds(c);
+        m.add_col(lp.cost(c), lo, hi, false);
+    }
+    for r in 0..lp.num_rows() {
+        let (lo, hi) = lp.row_bounds(r);
+        m.add_row(lo, hi, &mut lp.row_terms(r).to_vec());
+    }
+    let result = with_thread_lp(|s| s.solve(&m, None)).unwrap();
+    match result.status {
+        MipStatus::Optimal => Some(result.objective + lp.objective_constant()),
+        MipStatus::Infeasible => None,
+        other => panic!("HiGHS: {other:?}"),
+    }
+}
+
+/// Solve densely, check the point, and compare with HiGHS.
+fn agree(lp: &SmallLp) -> Option<f64> {
+    let dense = lp.solve().expect("dense simplex");
+    let highs = by_highs(lp);
+    match (&dense, highs) {
+        (LpOutcome::Optimal { x, objective }, Some(h)) => {
+            assert!(
+                (objective - h).abs() <= 1e-7 * (1.0 + h.abs()),
+                "{objective} vs HiGHS {h}: {lp:?}"
+            );
+            assert!((lp.objective(x) - objective).abs() <= 1e-9 * (1.0 + h.abs()));
+            for (c, &v) in x.iter().enumerate() {
+                let (lo, hi) = lp.bounds(c);
+                assert!(v >= lo && v <= hi, "column {c} = {v} outside [{lo}, {hi}]");
+            }
+            for r in 0..lp.num_rows() {
+                let (lo, hi) = lp.row_bounds(r);
+                let a = lp.activity(r, x);
+                assert!(
+                    a >= lo - 1e-9 && a <= hi + 1e-9,
+                    "row {r}: {a} outside [{lo}, {hi}]: {lp:?}"
+                );
+            }
+            Some(*objective)
+        }
+        (LpOutcome::Infeasible, None) => None,
+        (d, h) => panic!("dense {d:?} vs HiGHS {h:?}: {lp:?}"),
+    }
+}
+
+#[test]
+fn fixed_boxes_leave_only_the_rows_to_check() {
+    let mut lp = SmallLp::default();
+    let u = [lp.add_col(0.0, -2.0, -2.0), lp.add_col(0.0, 1.0, 1.0)];
+    let t = lp.add_col(3.0, 0.0, INF);
+    lp.add_row(0.5, INF, &[(t, 1.0), (u[0], 1.0), (u[1], 1.0)]);
+    lp.add_row(-1.5, INF, &[(u[0], 1.0), (u[1], 1.0)]);
+    assert_eq!(agree(&lp), Some(4.5));
+    lp.add_row(-0.5, INF, &[(u[0], 1.0), (u[1], 1.0)]);
+    assert_eq!(agree(&lp), None);
+}
+
+#[test]
+fn duplicated_and_redundant_rows_are_degenerate_not_harmful() {
+    let mut lp = SmallLp::default();
+    let u: Vec<usize> = (0..4).map(|_| lp.add_col(0.0, -3.0, 2.0)).collect();
+    let dev = lp.add_col(1.0, 0.0, INF);
+    // dev >= 1 - sum u, repeated; the same row in several scalings; rows the boxes satisfy.
+    for scale in [1.0, 1.0, 2.0, 0.5, 1.0] {
+        let mut terms: Vec<(usize, f64)> = u.iter().map(|&c| (c, scale)).collect();
+        terms.push((dev, scale));
+        lp.add_row(scale, INF, &terms);
+    }
+    for &c in &u {
+        lp.add_row(-3.0, 2.0, &[(c, 1.0)]);
+        lp.add_row(-10.0, INF, &[(c, 1.0), (u[0], 1.0)]);
+    }
+    // A row that forces the first acceleration down ties with the others at zero cost.
+    lp.add_row(-INF, -1.0, &[(u[0], 1.0), (u[1], 0.0)]);
+    lp.add_row(-INF, -1.0, &[(u[0], 1.0)]);
+    assert_eq!(agree(&lp), Some(0.0));
+}
+
+#[test]
+fn an_infeasible_row_set_is_reported_infeasible() {
+    let mut lp = SmallLp::default();
+    let u = [lp.add_col(0.0, -4.0, 1.0), lp.add_col(0.0, -4.0, 1.0)];
+    let s = lp.add_col(5.0, 0.0, 0.5);
+    // u0 + u1 + s >= 1.6 needs u0 + u1 >= 1.1, but u0 - u1 >= 1 and u1 >= 0.2 leave u0 >= 1.2.
+    lp.add_row(1.6, INF, &[(u[0], 1.0), (u[1], 1.0), (s, 1.0)]);
+    lp.add_row(1.0, INF, &[(u[0], 1.0), (u[1], -1.0)]);
+    lp.add_row(0.2, INF, &[(u[1], 1.0)]);
+    assert_eq!(agree(&lp), None);
+    // Equality rows that contradict each other.
+    let mut lp = SmallLp::default();
+    let x = lp.add_col(1.0, -INF, INF);
+    lp.add_row(1.0, 1.0, &[(x, 1.0)]);
+    lp.add_row(2.0, 2.0, &[(x, 1.0)]);
+    assert_eq!(lp.solve(), Err(SmallLpError::NoDualStart(x)));
+    let mut lp = SmallLp::default();
+    let x = lp.add_col(1.0, 0.0, INF);
+    lp.add_row(1.0, 1.0, &[(x, 1.0)]);
+    lp.add_row(2.0, 2.0, &[(x, 1.0)]);
+    assert_eq!(agree(&lp), None);
+}
+
+#[test]
+fn a_direction_unbounded_by_the_rows_is_bounded_by_the_boxes() {
+    // Minimise -u0 - 2 u1 (the boxes hold it) with a row that only bounds u0 - u1 below.
+    let mut lp = SmallLp::default();
+    let u = [lp.add_col(-1.0, -2.0, 1.5), lp.add_col(-2.0, -2.0, 0.5)];
+    lp.add_row(-1.0, INF, &[(u[0], 1.0), (u[1], -1.0)]);
+    assert_eq!(agree(&lp), Some(-2.5));
+    // A cost that pulls a column towards an infinite bound cannot start the dual simplex.
+    let t = lp.add_col(-1.0, 0.0, INF);
+    lp.add_row(0.0, INF, &[(t, 1.0), (u[0], 1.0)]);
+    assert_eq!(lp.solve(), Err(SmallLpError::NoDualStart(t)));
+}
+
+#[test]
+fn a_constant_and_costs_added_later_count() {
+    let mut lp = SmallLp::default();
+    let u = lp.add_col(0.0, -1.0, 1.0);
+    lp.add_cost(u, -2.0);
+    lp.add_constant(7.0);
+    assert_eq!(agree(&lp), Some(5.0));
+}
+
+/// A random LP shaped like the evaluation's: boxed accelerations (some fixed), hinge columns
+/// with non-negative costs, bounded slack columns, rows that repeat with different right-hand
+/// sides, cumulative speed rows.
+fn random_lp(rng: &mut ChaCha8Rng) -> SmallLp {
+    let mut lp = SmallLp::default();
+    let h = rng.random_range(1..=6);
+    let u: Vec<usize> = (0..h)
+        .map(|_| {
+            let lo = [-4.0, -2.0, -0.5, 0.0, 1.0][rng.random_range(0..5)];
+            let hi = if rng.random_bool(0.3) {
+                lo
+            } else {
+                lo + rng.random_range(0.5..3.0)
+            };
+            lp.add_col(0.0, lo, hi)
+        })
+        .collect();
+    for s in 0..h {
+        let speed: Vec<(usize, f64)> = u[..=s].iter().map(|&c| (c, 0.4)).collect();
+        lp.add_row(-15.0, 2.0, &speed);
+        let dev = lp.add_col(rng.random_range(0.0..3.0), 0.0, INF);
+        let target = rng.random_range(-2.0..2.0);
+        let mut up = speed.clone();
+        up.push((dev, 1.0));
+        lp.add_row(target, INF, &up);
+        let mut down: Vec<(usize, f64)> = speed.iter().map(|&(c, a)| (c, -a)).collect();
+        down.push((dev, 1.0));
+        lp.add_row(-target, INF, &down);
+        let brake = lp.add_col([0.0, 1.0, 20.0][rng.random_range(0..3)], 0.0, INF);
+        lp.add_row(rng.random_range(-3.0..0.0), INF, &[(brake, 1.0), (u[s], 1.0)]);
+    }
+    let cells = rng.random_range(0..6);
+    for _ in 0..cells {
+        let step = rng.random_range(0..h);
+        let slope = rng.random_range(-0.5..0.5);
+        let slack = rng
+            .random_bool(0.5)
+            .then(|| lp.add_col(rng.random_range(1.0..100.0), 0.0, rng.random_range(0.0..2.0)));
+        let coef: Vec<(usize, f64)> = (0..=step)
+            .map(|j| (u[j], -0.16 * ((step - j) as f64 + 0.5) - slope))
+            .collect();
+        for _ in 0..rng.random_range(1..5) {
+            let mut terms = coef.clone();
+            terms.extend(slack.map(|c| (c, 1.0)));
+            lp.add_row(rng.random_range(-1.5..1.0), INF, &terms);
+        }
+    }
+    lp
+}
+
+#[test]
+fn random_evaluation_shaped_lps_agree_with_highs() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (mut optimal, mut infeasible) = (0, 0);
+    for _ in 0..4000 {
+        match agree(&random_lp(&mut rng)) {
+            Some(_) => optimal += 1,
+            None => infeasible += 1,
+        }
+    }
+    assert!(
+        optimal > 500 && infeasible > 500,
+        "{optimal} optimal, {infeasible} infeasible"
+    );
+}
