@@ -169,6 +169,11 @@ struct ServeArgs {
     /// 0 the watchdog and the transports take the CPU before a solve does.
     #[arg(long, default_value_t = planner::service::WORKER_NICE, value_parser = clap::value_parser!(i32).range(0..=19))]
     worker_nice: i32,
+    /// SCHED_FIFO priority of the deadline watchdog thread, 1-99 (0: an ordinary thread).
+    /// Needs CAP_SYS_NICE or an RLIMIT_RTPRIO at least this high (systemd: LimitRTPRIO=);
+    /// without, the watchdog stays an ordinary thread and a warning says so.
+    #[arg(long, default_value_t = planner::service::WATCHDOG_RT_PRIORITY, value_parser = clap::value_parser!(i32).range(0..=99))]
+    watchdog_rt_priority: i32,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
@@ -202,6 +207,7 @@ fn service_config(args: &ServeArgs, file: &ServiceSection) -> Result<ServiceConf
         burst: args.vehicle_rate_limit.max(1.0),
     });
     config.worker_nice = args.worker_nice;
+    config.watchdog_rt_priority = (args.watchdog_rt_priority > 0).then_some(args.watchdog_rt_priority);
     config.inject_solve_delay = Duration::from_millis(args.inject_solve_delay_ms);
     Ok(config)
 }

@@ -9,15 +9,14 @@
 //! * Each worker thread owns a [`decision::Planner`] (not `Send`: built on its thread).
 //! * The watchdog thread answers `decision::fallback_only` marked
 //!   [`protocol::Layer::WatchdogFallback`] when a deadline runs out, interrupts the running HiGHS solve
-//!   and makes the worker discard its late result.
+//!   and makes the worker discard its late result. It runs at a real-time priority when
+//!   permitted and computes the fallback ahead of the deadline (`service/watchdog.rs`).
 //! * A request already older than its deadline by its `sent_at_ns`, on arrival or when a
 //!   worker takes it, gets the fallback marked [`protocol::Layer::StaleFallback`], unsolved.
 //! * With a signing key every answer is signed on its way out ([`protocol::signing`]).
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -28,6 +27,7 @@ use protocol::{unix_now_ns, Layer, PlanRequest, PlanResponse, ResponseSigner, Wi
 use crate::fair_queue::{FairQueue, RateLimit, RateLimiter};
 
 mod statistics;
+mod watchdog;
 use statistics::Counters;
 pub use statistics::{Stats, StatsSnapshot};
 
@@ -46,6 +46,11 @@ pub const QUEUE_PER_VEHICLE: usize = 8;
 /// the watchdog's answers earlier on a machine shared with the vehicles, and it starved the
 /// solves of CPU there.
 pub const WORKER_NICE: i32 = 0;
+
+/// Default SCHED_FIFO priority of the watchdog thread (see
+/// [`ServiceConfig::watchdog_rt_priority`]): low among real-time priorities (1..=99), above
+/// every ordinary thread, below the kernel's own real-time threads.
+pub const WATCHDOG_RT_PRIORITY: i32 = 10;
 
 /// Settings of the service core.
 #[derive(Debug, Clone)]
@@ -69,6 +74,11 @@ pub struct ServiceConfig {
     /// Nice value of the worker threads (0: the process's own); above 0 the watchdog and the
     /// transports take the CPU before a solve does.
     pub worker_nice: i32,
+    /// SCHED_FIFO priority of the watchdog thread (`None`: an ordinary thread). At a real-time
+    /// priority it answers a deadline as soon as it wakes, instead of waiting for a core
+    /// behind the solver threads, the transports and other processes; where the process may
+    /// not (no CAP_SYS_NICE, RLIMIT_RTPRIO too low) it stays ordinary, with a warning.
+    pub watchdog_rt_priority: Option<i32>,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
     /// Records every decoded request and its answer (`planner serve --record`).
@@ -88,6 +98,7 @@ impl Default for ServiceConfig {
             clock_skew_tolerance: protocol::DEFAULT_CLOCK_SKEW_TOLERANCE,
             signer: None,
             worker_nice: WORKER_NICE,
+            watchdog_rt_priority: Some(WATCHDOG_RT_PRIORITY),
             inject_solve_delay: Duration::ZERO,
             recorder: None,
         }
@@ -166,7 +177,7 @@ pub struct Service {
     config: ServiceConfig,
     queue: Arc<WorkQueue>,
     limiter: Option<Mutex<RateLimiter>>,
-    watchdog: Option<mpsc::Sender<Arc<JobState>>>,
+    watchdog: Option<Arc<watchdog::Inbox>>,
     stats: Arc<Stats>,
     threads: Vec<JoinHandle<()>>,
 }
@@ -215,14 +226,24 @@ impl Service {
                 Err(_) => anyhow::bail!("a worker died while starting"),
             }
         }
-        let (wd_tx, wd_rx) = mpsc::channel::<Arc<JobState>>();
+        let inbox = Arc::new(watchdog::Inbox::new());
         {
             let cfg = Arc::clone(&planner_config);
             let stats = Arc::clone(&stats);
+            let priority = config.watchdog_rt_priority;
+            let inbox = Arc::clone(&inbox);
             threads.push(
                 std::thread::Builder::new()
                     .name("planner-watchdog".into())
-                    .spawn(move || watchdog(&cfg, &wd_rx, &stats))?,
+                    .spawn(move || {
+                        if let Some(priority) = priority {
+                            match supervise::set_thread_realtime(priority) {
+                                Ok(()) => tracing::debug!(priority, "watchdog thread at SCHED_FIFO"),
+                                Err(e) => tracing::warn!("watchdog thread stays an ordinary thread: {e}"),
+                            }
+                        }
+                        watchdog::run(&cfg, &inbox, &stats)
+                    })?,
             );
         }
         Ok(Self {
@@ -230,7 +251,7 @@ impl Service {
             limiter: config.rate_limit.map(|limit| Mutex::new(RateLimiter::new(limit))),
             config,
             queue,
-            watchdog: Some(wd_tx),
+            watchdog: Some(inbox),
             stats,
             threads,
         })
@@ -328,10 +349,12 @@ impl Service {
             !state.closed && state.jobs.push(vehicle, Arc::clone(&job)).is_ok()
         };
         if queued {
-            self.queue.ready.notify_one();
+            // The watchdog first: waking a worker may hand it this core (wake-up preemption)
+            // for a whole solve, and the watchdog must know the deadline before that.
             if let Some(wd) = &self.watchdog {
-                let _ = wd.send(job);
+                wd.send(Arc::clone(&job));
             }
+            self.queue.ready.notify_one();
         } else {
             self.stats.lock().counters.overloaded += 1;
             job.abandoned.store(true, Ordering::SeqCst);
@@ -352,7 +375,9 @@ impl Service {
     /// Stops accepting work and joins the threads (queued jobs are still answered).
     pub fn shutdown(&mut self) {
         self.queue.close();
-        self.watchdog = None;
+        if let Some(inbox) = self.watchdog.take() {
+            inbox.close();
+        }
         for t in self.threads.drain(..) {
             let _ = t.join();
         }
@@ -452,80 +477,6 @@ fn worker(
                 reply(response);
             }
             None => stats.lock().counters.late_discarded += 1,
-        }
-    }
-}
-
-fn watchdog(config: &PlannerConfig, jobs: &Receiver<Arc<JobState>>, stats: &Stats) {
-    // Min-heap of deadlines; the sequence number breaks ties.
-    let mut heap: BinaryHeap<Reverse<(Instant, u64)>> = BinaryHeap::new();
-    let mut pending: std::collections::HashMap<u64, Arc<JobState>> = std::collections::HashMap::new();
-    let next = AtomicU64::new(0);
-    let mut last_log = Instant::now();
-    let mut open = true;
-    while open || !heap.is_empty() {
-        let timeout = match heap.peek() {
-            Some(Reverse((deadline, _))) => deadline.saturating_duration_since(Instant::now()),
-            None => Duration::from_millis(1000),
-        };
-        let received = if open {
-            jobs.recv_timeout(timeout)
-        } else {
-            std::thread::sleep(timeout);
-            Err(RecvTimeoutError::Timeout)
-        };
-        match received {
-            Ok(job) => {
-                let n = next.fetch_add(1, Ordering::Relaxed);
-                heap.push(Reverse((job.deadline, n)));
-                pending.insert(n, job);
-            }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => open = false,
-        }
-        let now = Instant::now();
-        while let Some(Reverse((deadline, n))) = heap.peek().copied() {
-            if deadline > now {
-                break;
-            }
-            heap.pop();
-            let Some(job) = pending.remove(&n) else { continue };
-            if job.reply.lock().unwrap_or_else(|e| e.into_inner()).is_none() {
-                continue; // already answered
-            }
-            job.abandoned.store(true, Ordering::SeqCst);
-            if let Some((handle, first_id)) = job.solving.lock().unwrap_or_else(|e| e.into_inner()).clone() {
-                match handle.running() {
-                    Some(id) if id >= first_id => handle.interrupt(id),
-                    _ => handle.interrupt(first_id),
-                }
-            }
-            if answer_fallback(config, &job, stats, Layer::WatchdogFallback) {
-                tracing::debug!(
-                    vehicle = job.request.vehicle_id,
-                    sequence = job.request.sequence,
-                    "deadline ran out: watchdog fallback"
-                );
-            }
-        }
-        // Drop finished jobs lazily: answered jobs leave the map when their deadline passes.
-        if last_log.elapsed() >= Duration::from_secs(10) {
-            last_log = Instant::now();
-            let s = stats.snapshot();
-            tracing::info!(
-                answered = s.answered,
-                nominal = s.by_layer.nominal,
-                global_relaxation = s.by_layer.global_relaxation,
-                fallback = s.by_layer.fallback,
-                watchdog_fallback = s.by_layer.watchdog_fallback,
-                stale_fallback = s.by_layer.stale_fallback,
-                rejected = s.by_layer.rejected,
-                overloaded = s.overloaded,
-                p50_us = s.latency.p50_us,
-                p99_us = s.latency.p99_us,
-                max_us = s.latency.max_us,
-                "planner stats"
-            );
         }
     }
 }

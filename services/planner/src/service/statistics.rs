@@ -87,20 +87,34 @@ impl Stats {
         stats::record(&mut self.lock().solve, took);
     }
 
-    /// The current statistics.
+    /// The current statistics. The histograms are copied under the lock and read outside
+    /// it: reading percentiles walks every bucket, and the watchdog, at a real-time priority,
+    /// must not wait that long (nor for a preempted reader) to count its answer.
     pub fn snapshot(&self) -> StatsSnapshot {
-        let s = self.lock();
+        let (by_layer, counters, latency, solve) = {
+            let s = self.lock();
+            let c = &s.counters;
+            let counters = [
+                c.probes,
+                c.overloaded,
+                c.rate_limited,
+                c.stale_in_queue,
+                c.late_discarded,
+            ];
+            (s.by_layer, counters, s.latency.clone(), s.solve.clone())
+        };
+        let [probes, overloaded, rate_limited, stale_in_queue, late_discarded] = counters;
         StatsSnapshot {
             uptime_s: self.started.elapsed().as_secs_f64(),
-            answered: s.by_layer.total(),
-            by_layer: s.by_layer,
-            probes: s.counters.probes,
-            overloaded: s.counters.overloaded,
-            rate_limited: s.counters.rate_limited,
-            stale_in_queue: s.counters.stale_in_queue,
-            late_discarded: s.counters.late_discarded,
-            latency: Percentiles::of_histogram(&s.latency),
-            solve: Percentiles::of_histogram(&s.solve),
+            answered: by_layer.total(),
+            by_layer,
+            probes,
+            overloaded,
+            rate_limited,
+            stale_in_queue,
+            late_discarded,
+            latency: Percentiles::of_histogram(&latency),
+            solve: Percentiles::of_histogram(&solve),
         }
     }
 }
