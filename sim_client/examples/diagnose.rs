@@ -9,7 +9,8 @@
 //! trial decision by decision (speed, state, plan, the leader); `NEAR_M` how far along the road
 //! `SHOW_FALLBACK` lists SVs (80 m), `DUMP_FALLBACK=DIR` writes their situations as JSON for
 //! `cargo run -p decision --example explain_fallback`; `SHOW_COUNTS=1` the beta
-//! switches per trial; `SHOW_SAFETY=1` the trials with a DRAC above 3 m/s^2.
+//! switches per trial; `SHOW_SAFETY=1` the trials with a DRAC above 3 m/s^2; `SHOW_NEAR=CFG:TRIAL`
+//! the steps of one trial with a vehicle close beside or ahead of the ego.
 use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::episode::{run_episode, Driver};
 use sim_client::link::InProcess;
@@ -112,6 +113,9 @@ fn main() -> anyhow::Result<()> {
                     );
                 }
             }
+            if std::env::var("SHOW_NEAR").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
+                show_near(&ep.trajectory);
+            }
             if std::env::var("SHOW_TRACE").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
                 for r in d {
                     let Some(s) = &r.situation else { continue };
@@ -203,4 +207,40 @@ fn main() -> anyhow::Result<()> {
         println!("  {k}: {v}");
     }
     Ok(())
+}
+
+/// Every recorded step with a vehicle within 8 m of the ego and less than 3 m beside it: the
+/// ego and the vehicles within 40 m.
+fn show_near(trajectory: &[sim_client::episode::VehicleState]) {
+    let mut steps: BTreeMap<u64, Vec<&sim_client::episode::VehicleState>> = BTreeMap::new();
+    for v in trajectory {
+        steps.entry(v.step).or_default().push(v);
+    }
+    for vs in steps.values() {
+        let Some(ego) = vs.iter().find(|v| v.id == 0) else {
+            continue;
+        };
+        if !vs
+            .iter()
+            .any(|v| v.id != 0 && (v.x_m - ego.x_m).abs() < 8.0 && (v.y_m - ego.y_m).abs() < 3.0)
+        {
+            continue;
+        }
+        print!(
+            "t {:5.1} ego x {:7.1} y {:5.2} v {:5.2} a {:5.2} lane {}->{} b {:2} |",
+            ego.time_s, ego.x_m, ego.y_m, ego.v_mps, ego.a_mps2, ego.lane, ego.target_lane, ego.beta
+        );
+        for v in vs.iter().filter(|v| v.id != 0 && (v.x_m - ego.x_m).abs() < 40.0) {
+            print!(
+                " #{} dx {:6.1} y {:5.2} v {:5.2} {}->{};",
+                v.id,
+                v.x_m - ego.x_m,
+                v.y_m,
+                v.v_mps,
+                v.lane,
+                v.target_lane
+            );
+        }
+        println!();
+    }
 }
