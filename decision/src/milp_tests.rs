@@ -206,3 +206,37 @@ fn the_relaxation_first_gives_the_mips_optimum() {
         );
     }
 }
+
+/// `[solver.highs_options]` reach the branch and bound's LP instance as well as the MIP's:
+/// with no simplex iteration allowed no relaxation settles a layer that needs one, and with
+/// the options the MIP alone saw, the tree settled most of them.
+#[test]
+fn extra_highs_options_reach_the_tree_lps() {
+    let config = PlannerConfig::default();
+    let mut stopped = config.solver.clone();
+    stopped.highs_options.insert(
+        "simplex_iteration_limit".into(),
+        crate::config::HighsOptionValue::Int(0),
+    );
+    let mut free = MilpBackend::new(&config.solver).unwrap();
+    let mut limited = MilpBackend::new(&stopped).unwrap();
+    let (mut by_free, mut by_limited) = (0, 0);
+    for class in paper_classes() {
+        let mut generator = SituationGenerator::new(11 + u64::from(class.id));
+        for _ in 0..3 {
+            let s = generator.situation(&config, &class);
+            let problem = prepare(&config, &s).problem;
+            let Ok((model, _)) = build(&problem, Mode::Nominal) else {
+                continue;
+            };
+            if model.num_rows() == 0 {
+                continue; // settled by construction, no LP run
+            }
+            let keep = vec![vec![Action::KEEP; problem.horizon]];
+            by_free += usize::from(free.solve(&problem, Mode::Nominal, &keep).unwrap().settled_at_root);
+            by_limited += usize::from(limited.solve(&problem, Mode::Nominal, &keep).unwrap().settled_at_root);
+        }
+    }
+    assert!(by_free > 10, "the tree settled only {by_free} layers");
+    assert_eq!(by_limited, 0, "layers settled by LPs that could not iterate");
+}
