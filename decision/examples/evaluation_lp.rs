@@ -9,7 +9,7 @@ use std::time::Instant;
 use decision::corpus::{paper_classes, SituationGenerator};
 use decision::evaluate::accel_lp::{by_dense, by_highs};
 use decision::evaluate::{requirements, Mode};
-use decision::model::{admissible_sequences, rollout};
+use decision::model::rollout;
 use decision::problem::prepare;
 use decision::PlannerConfig;
 
@@ -33,12 +33,7 @@ fn main() {
         let mut generator = SituationGenerator::new(2026 + u64::from(class.id));
         for _ in 0..situations {
             let problem = prepare(&config, &generator.situation(&config, &class)).problem;
-            let sequences = admissible_sequences(
-                problem.ego.maneuver,
-                problem.lanes,
-                problem.horizon,
-                problem.combined_actions,
-            );
+            let sequences = problem.admissible_sequences();
             let stride = (sequences.len() / 200).max(1);
             for actions in sequences.iter().step_by(stride) {
                 if let Some(r) = rollout(&problem.kin, problem.lanes, &problem.ego, actions) {

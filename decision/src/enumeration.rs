@@ -1,18 +1,12 @@
 //! The exact oracle: exhaustive enumeration of the ego's action sequences.
 
 use crate::evaluate::{evaluate, Evaluation, Mode};
-use crate::model::admissible_sequences;
 use crate::problem::Problem;
 
 /// Best sequence and how many were examined. Ties go to the first in enumeration order
 /// ("keep" first), so the answer is deterministic.
 pub fn solve(problem: &Problem, mode: Mode) -> (Option<Evaluation>, usize) {
-    let sequences = admissible_sequences(
-        problem.ego.maneuver,
-        problem.lanes,
-        problem.horizon,
-        problem.combined_actions,
-    );
+    let sequences = problem.admissible_sequences();
     let count = sequences.len();
     let mut best: Option<Evaluation> = None;
     for actions in &sequences {

@@ -4,7 +4,6 @@
 use super::*;
 use crate::corpus::{paper_classes, SituationGenerator};
 use crate::evaluate::{evaluate, Evaluation};
-use crate::model::admissible_sequences;
 use crate::problem::prepare;
 use crate::PlannerConfig;
 
@@ -18,12 +17,7 @@ fn oracle_points_are_milp_feasible(config: &PlannerConfig) -> usize {
         for _ in 0..4 {
             let s = generator.situation(config, &class);
             let problem = prepare(config, &s).problem;
-            let sequences = admissible_sequences(
-                problem.ego.maneuver,
-                problem.lanes,
-                problem.horizon,
-                problem.combined_actions,
-            );
+            let sequences = problem.admissible_sequences();
             for mode in [Mode::Nominal, Mode::Relaxed] {
                 let Ok((model, cols)) = build(&problem, mode) else {
                     let any = sequences.iter().any(|a| evaluate(&problem, a, mode).is_some());

@@ -131,6 +131,13 @@ pub struct Problem {
     pub evaluation_lp: crate::config::EvaluationLp,
 }
 
+impl Problem {
+    /// Every action sequence the ego may take over the horizon (the oracle's search space).
+    pub fn admissible_sequences(&self) -> Vec<Vec<Action>> {
+        crate::model::admissible_sequences(self.ego.maneuver, self.lanes, self.horizon, self.combined_actions)
+    }
+}
+
 /// A problem with the memory the refresh produced.
 #[derive(Debug, Clone)]
 pub struct Prepared {

@@ -131,6 +131,11 @@ impl JobState {
     fn take_reply(&self) -> Option<Reply> {
         self.reply.lock().unwrap_or_else(|e| e.into_inner()).take()
     }
+
+    /// Someone (a worker, the watchdog, the stale path) has answered.
+    fn answered(&self) -> bool {
+        self.reply.lock().unwrap_or_else(|e| e.into_inner()).is_none()
+    }
 }
 
 /// The requests waiting for a worker, shared by the submitters and the workers.
@@ -392,7 +397,7 @@ impl Drop for Service {
 
 /// Answers `job` with the fallback marked `layer`, if nobody answered yet.
 fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats, layer: Layer) -> bool {
-    answer_fallback_counted(config, job, stats, layer, |_| {})
+    answer_fallback_counted(config, job, stats, layer, None)
 }
 
 /// [`answer_fallback`], with `count` applied to the counters before the answer leaves: a
@@ -402,15 +407,34 @@ fn answer_fallback_counted(
     job: &JobState,
     stats: &Stats,
     layer: Layer,
-    count: impl FnOnce(&mut Counters),
+    count: Option<fn(&mut Counters)>,
+) -> bool {
+    send_fallback(
+        job,
+        stats,
+        || protocol::fallback_answer(config, &job.request, layer),
+        count,
+    )
+}
+
+/// Answers `job` with the fallback `fallback` gives (computed only if the job is still
+/// unanswered), its queue time set now, counted with `count` before it leaves; whether it
+/// was this answer.
+fn send_fallback(
+    job: &JobState,
+    stats: &Stats,
+    fallback: impl FnOnce() -> PlanResponse,
+    count: Option<fn(&mut Counters)>,
 ) -> bool {
     let Some(reply) = job.take_reply() else {
         return false;
     };
-    let mut response = protocol::fallback_answer(config, &job.request, layer);
+    let mut response = fallback();
     response.queue_us = micros(job.arrival.elapsed());
     stats.record_answer(&response, job.arrival);
-    count(&mut stats.lock().counters);
+    if let Some(count) = count {
+        count(&mut stats.lock().counters);
+    }
     reply(response);
     true
 }
@@ -448,7 +472,13 @@ fn worker(
         }
         // The request may have become stale while it waited in the queue.
         if job.request.is_stale_at(unix_now_ns(), job.allowed, tolerance) {
-            answer_fallback_counted(config, &job, stats, Layer::StaleFallback, |c| c.stale_in_queue += 1);
+            answer_fallback_counted(
+                config,
+                &job,
+                stats,
+                Layer::StaleFallback,
+                Some(|c| c.stale_in_queue += 1),
+            );
             continue;
         }
         let started = Instant::now();

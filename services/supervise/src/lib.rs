@@ -132,20 +132,6 @@ pub fn set_thread_realtime(priority: i32) -> Result<(), RealtimeError> {
     }
 }
 
-/// The calling thread's scheduling class and real-time priority: `(SCHED_FIFO, 10)`, or
-/// `(SCHED_OTHER, 0)` for an ordinary thread. Linux only (`None` elsewhere).
-pub fn thread_scheduler() -> Option<(i32, i32)> {
-    #[cfg(target_os = "linux")]
-    {
-        let mut param = libc::sched_param { sched_priority: 0 };
-        // SAFETY: pid 0 is the calling thread; `param` outlives the call.
-        let (policy, result) = unsafe { (libc::sched_getscheduler(0), libc::sched_getparam(0, &mut param)) };
-        (policy >= 0 && result == 0).then_some((policy & !libc::SCHED_RESET_ON_FORK, param.sched_priority))
-    }
-    #[cfg(not(target_os = "linux"))]
-    None
-}
-
 /// Hands the allocator's free memory back to the system (glibc keeps freed heap pages,
 /// so a service's RSS would otherwise stay at its high-water mark, and a soak could not
 /// tell a leak from one large request). A no-op elsewhere.
@@ -252,6 +238,16 @@ pub fn planner_files(path: Option<&Path>) -> Result<(PlannerConfig, ServiceSecti
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The calling thread's scheduling class and real-time priority: `(SCHED_FIFO, 10)`, or
+    /// `(SCHED_OTHER, 0)` for an ordinary thread.
+    #[cfg(target_os = "linux")]
+    fn thread_scheduler() -> Option<(i32, i32)> {
+        let mut param = libc::sched_param { sched_priority: 0 };
+        // SAFETY: pid 0 is the calling thread; `param` outlives the call.
+        let (policy, result) = unsafe { (libc::sched_getscheduler(0), libc::sched_getparam(0, &mut param)) };
+        (policy >= 0 && result == 0).then_some((policy & !libc::SCHED_RESET_ON_FORK, param.sched_priority))
+    }
 
     #[cfg(target_os = "linux")]
     #[test]

@@ -4,7 +4,7 @@
 use super::*;
 use crate::corpus::{paper_classes, SituationGenerator};
 use crate::evaluate::{requirements, score};
-use crate::model::{admissible_sequences, rollout};
+use crate::model::rollout;
 use crate::problem::prepare;
 use crate::PlannerConfig;
 
@@ -26,12 +26,7 @@ fn compare(config: &PlannerConfig, situations: usize, per_situation: usize, seed
         for _ in 0..situations {
             let s = generator.situation(config, &class);
             let problem = prepare(config, &s).problem;
-            let sequences = admissible_sequences(
-                problem.ego.maneuver,
-                problem.lanes,
-                problem.horizon,
-                problem.combined_actions,
-            );
+            let sequences = problem.admissible_sequences();
             let stride = (sequences.len() / per_situation).max(1);
             offset += 1;
             for actions in sequences.iter().skip(offset % stride).step_by(stride) {

@@ -10,7 +10,7 @@ use serde::Serialize;
 use stats::{LayerCounts, Percentiles};
 
 /// Counters of the service apart from the answers by layer.
-#[derive(Default)]
+#[derive(Default, Clone, Copy)]
 pub(super) struct Counters {
     pub(super) probes: u64,
     pub(super) overloaded: u64,
@@ -91,28 +91,19 @@ impl Stats {
     /// it: reading percentiles walks every bucket, and the watchdog, at a real-time priority,
     /// must not wait that long (nor for a preempted reader) to count its answer.
     pub fn snapshot(&self) -> StatsSnapshot {
-        let (by_layer, counters, latency, solve) = {
+        let (by_layer, c, latency, solve) = {
             let s = self.lock();
-            let c = &s.counters;
-            let counters = [
-                c.probes,
-                c.overloaded,
-                c.rate_limited,
-                c.stale_in_queue,
-                c.late_discarded,
-            ];
-            (s.by_layer, counters, s.latency.clone(), s.solve.clone())
+            (s.by_layer, s.counters, s.latency.clone(), s.solve.clone())
         };
-        let [probes, overloaded, rate_limited, stale_in_queue, late_discarded] = counters;
         StatsSnapshot {
             uptime_s: self.started.elapsed().as_secs_f64(),
             answered: by_layer.total(),
             by_layer,
-            probes,
-            overloaded,
-            rate_limited,
-            stale_in_queue,
-            late_discarded,
+            probes: c.probes,
+            overloaded: c.overloaded,
+            rate_limited: c.rate_limited,
+            stale_in_queue: c.stale_in_queue,
+            late_discarded: c.late_discarded,
             latency: Percentiles::of_histogram(&latency),
             solve: Percentiles::of_histogram(&solve),
         }

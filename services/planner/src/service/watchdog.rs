@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use decision::PlannerConfig;
 use protocol::{Layer, PlanResponse};
 
-use super::{micros, JobState, Stats};
+use super::{send_fallback, JobState, Stats};
 
 /// How long the watchdog sleeps with nothing to wait for (it also logs the statistics).
 const IDLE: Duration = Duration::from_secs(1);
@@ -171,7 +171,7 @@ pub(super) fn run(config: &PlannerConfig, inbox: &Inbox, stats: &Stats) {
                 };
                 // Skipped when a worker has answered already.
                 if let Some(w) = p.waiting.get_mut(&id) {
-                    if w.job.reply.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
+                    if !w.job.answered() {
                         w.fallback = Some(protocol::fallback_answer(
                             config,
                             &w.job.request,
@@ -197,8 +197,8 @@ pub(super) fn run(config: &PlannerConfig, inbox: &Inbox, stats: &Stats) {
 /// worker answered first.
 fn expire(config: &PlannerConfig, w: Waiting, stats: &Stats) {
     let job = &w.job;
-    if job.reply.lock().unwrap_or_else(|e| e.into_inner()).is_none() {
-        return; // already answered
+    if job.answered() {
+        return;
     }
     job.abandoned.store(true, Ordering::SeqCst);
     if let Some((handle, first_id)) = job.solving.lock().unwrap_or_else(|e| e.into_inner()).clone() {
@@ -207,13 +207,12 @@ fn expire(config: &PlannerConfig, w: Waiting, stats: &Stats) {
             _ => handle.interrupt(first_id),
         }
     }
-    let Some(reply) = job.take_reply() else { return };
-    let mut response = w
-        .fallback
-        .unwrap_or_else(|| protocol::fallback_answer(config, &job.request, Layer::WatchdogFallback));
-    response.queue_us = micros(job.arrival.elapsed());
-    stats.record_answer(&response, job.arrival);
-    reply(response);
+    let prepared = w.fallback;
+    let fallback =
+        || prepared.unwrap_or_else(|| protocol::fallback_answer(config, &job.request, Layer::WatchdogFallback));
+    if !send_fallback(job, stats, fallback, None) {
+        return;
+    }
     tracing::debug!(
         vehicle = job.request.vehicle_id,
         sequence = job.request.sequence,
