@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::ConfigError;
 
 mod solver;
-pub use solver::{Backend, EvaluationLp, HighsOptionValue, SolverSettings};
+pub use solver::{Backend, HighsOptionValue, LpSolver, SolverSettings};
 
 /// The complete planner configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]

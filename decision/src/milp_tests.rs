@@ -208,11 +208,14 @@ fn the_relaxation_first_gives_the_mips_optimum() {
 fn extra_highs_options_reach_the_tree_lps() {
     let config = PlannerConfig::default();
     let mut stopped = config.solver.clone();
+    stopped.tree_lp = crate::config::LpSolver::Highs;
     stopped.highs_options.insert(
         "simplex_iteration_limit".into(),
         crate::config::HighsOptionValue::Int(0),
     );
-    let mut free = MilpBackend::new(&config.solver).unwrap();
+    let mut free_settings = config.solver.clone();
+    free_settings.tree_lp = crate::config::LpSolver::Highs;
+    let mut free = MilpBackend::new(&free_settings).unwrap();
     let mut limited = MilpBackend::new(&stopped).unwrap();
     let (mut by_free, mut by_limited) = (0, 0);
     for class in paper_classes() {
@@ -233,4 +236,29 @@ fn extra_highs_options_reach_the_tree_lps() {
     }
     assert!(by_free > 10, "the tree settled only {by_free} layers");
     assert_eq!(by_limited, 0, "layers settled by LPs that could not iterate");
+}
+
+/// The dense simplex (steepest edge, bound flipping) reaches HiGHS's optimum on the
+/// relaxations of the bench corpus, both layers, whatever their size: the tree prunes on
+/// this bound, so a value above the true one would drop the optimum.
+#[test]
+fn dense_relaxations_agree_with_highs() {
+    let config = PlannerConfig::default();
+    let mut solved = 0;
+    for class in paper_classes() {
+        let mut generator = SituationGenerator::new(31 + u64::from(class.id));
+        for _ in 0..4 {
+            let s = generator.situation(&config, &class);
+            let problem = prepare(&config, &s).problem;
+            for mode in [Mode::Nominal, Mode::Relaxed] {
+                let Ok((model, _)) = build(&problem, mode) else {
+                    continue;
+                };
+                let lp = branch::dense_relaxation(&model);
+                crate::small_lp::tests::agree_with(&lp, crate::small_lp::Pricing::SteepestEdge);
+                solved += 1;
+            }
+        }
+    }
+    assert!(solved > 100, "{solved} relaxations");
 }

@@ -128,7 +128,7 @@ pub struct Problem {
     pub svs: Vec<SvConstraint>,
     pub tolerance: f64,
     /// Solver of the exact evaluation's LP.
-    pub evaluation_lp: crate::config::EvaluationLp,
+    pub evaluation_lp: crate::config::LpSolver,
 }
 
 impl Problem {

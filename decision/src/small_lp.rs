@@ -54,6 +54,20 @@ impl std::fmt::Display for Violated {
     }
 }
 
+/// How the dual simplex picks its pivots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pricing {
+    /// The most violated row leaves, the smallest dual ratio enters (the exact evaluation's
+    /// rule: its LPs have a handful of columns).
+    #[default]
+    LargestViolation,
+    /// Dual steepest edge (exact weights, read off the tableau) with the bound-flipping
+    /// ratio test: boxed columns whose ratio comes first jump to their other bound instead
+    /// of entering, as long as the leaving row stays violated. On the MILP's relaxation,
+    /// whose columns are mostly `[0, 1]` boxes, that takes several times fewer pivots.
+    SteepestEdge,
+}
+
 /// How a solve ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LpOutcome {
@@ -139,18 +153,41 @@ impl SmallLp {
         self.offset + self.cost.iter().zip(x).map(|(c, x)| c * x).sum::<f64>()
     }
 
+    /// Replace the box of `col`.
+    pub fn set_bounds(&mut self, col: usize, lower: f64, upper: f64) {
+        self.lower[col] = lower;
+        self.upper[col] = upper;
+    }
+
     /// Solve by the dual simplex; see the module documentation.
     pub fn solve(&self) -> Result<LpOutcome, SmallLpError> {
+        self.solve_with(Pricing::LargestViolation)
+    }
+
+    /// Solve by the dual simplex with the given pivot rules.
+    pub fn solve_with(&self, pricing: Pricing) -> Result<LpOutcome, SmallLpError> {
         let mut tableau = Tableau::new(self)?;
         let limit = 50 * (tableau.m + tableau.n) + 200;
         // Largest-violation pivoting is faster; Bland's rule past this point cannot cycle.
         let bland_after = 4 * (tableau.m + tableau.n) + 20;
         for iteration in 0..limit {
-            tableau.update_basic_values();
-            let Some(p) = tableau.leaving(iteration >= bland_after) else {
+            let bland = iteration >= bland_after;
+            let steepest = pricing == Pricing::SteepestEdge && !bland;
+            tableau.update_basic_values(pricing);
+            let leaving = if steepest {
+                tableau.leaving_steepest()
+            } else {
+                tableau.leaving(bland)
+            };
+            let Some(p) = leaving else {
                 return self.finish(&tableau);
             };
-            let Some(q) = tableau.entering(p, iteration >= bland_after) else {
+            let entering = if steepest {
+                tableau.entering_flipping(p)
+            } else {
+                tableau.entering(p, bland)
+            };
+            let Some(q) = entering else {
                 return Ok(LpOutcome::Infeasible);
             };
             tableau.pivot(p, q);
@@ -245,10 +282,14 @@ impl Tableau {
         })
     }
 
-    fn update_basic_values(&mut self) {
+    fn update_basic_values(&mut self, pricing: Pricing) {
         for (i, b) in self.beta.iter_mut().enumerate() {
             let row = &self.t[i * self.n..(i + 1) * self.n];
-            *b = row.iter().zip(&self.value).map(|(t, v)| t * v).sum();
+            *b = match pricing {
+                // The evaluation's sums keep their order (its decisions stay bit for bit).
+                Pricing::LargestViolation => row.iter().zip(&self.value).map(|(t, v)| t * v).sum(),
+                Pricing::SteepestEdge => dot(row, &self.value),
+            };
         }
     }
 
@@ -276,6 +317,88 @@ impl Tableau {
             }
         }
         best.map(|(i, _)| i)
+    }
+
+    /// The violated basic position with the largest `violation^2 / |e_p B^-1|^2`. Row `p`
+    /// of `B^-1` is read off the tableau: its entries at the nonbasic row activities, and a
+    /// 1 where `p` itself holds a row activity.
+    fn leaving_steepest(&self) -> Option<usize> {
+        // 1 at the nonbasic row activities, 0 elsewhere.
+        let logicals: Vec<f64> = self
+            .nonbasic
+            .iter()
+            .map(|&v| f64::from(u8::from(v >= self.n)))
+            .collect();
+        let mut best: Option<(usize, f64)> = None;
+        for i in 0..self.m {
+            let viol = self.violation(i);
+            if viol <= PRIMAL_TOL {
+                continue;
+            }
+            let row = &self.t[i * self.n..(i + 1) * self.n];
+            let own = if self.basic[i] >= self.n { 1.0 } else { 0.0 };
+            let weight = own + squares_where(row, &logicals);
+            let score = viol * viol / weight.max(1e-12);
+            if best.is_none_or(|(_, s)| score > s) {
+                best = Some((i, score));
+            }
+        }
+        best.map(|(i, _)| i)
+    }
+
+    /// The bound-flipping ratio test for leaving row `p`: candidates in order of their dual
+    /// ratio; each boxed one whose full move leaves the row still violated flips to its
+    /// other bound, and the first that would not is the entering position. `None` when
+    /// every candidate flips and the row stays violated: the LP is infeasible.
+    fn entering_flipping(&mut self, p: usize) -> Option<usize> {
+        let n = self.n;
+        let leaving = self.basic[p];
+        let increase = self.beta[p] < self.lower[leaving];
+        let mut gap = if increase {
+            self.lower[leaving] - self.beta[p]
+        } else {
+            self.beta[p] - self.upper[leaving]
+        };
+        let row = &self.t[p * n..(p + 1) * n];
+        let mut candidates: Vec<(f64, usize)> = Vec::new();
+        for (k, &a) in row.iter().enumerate() {
+            let v = self.nonbasic[k];
+            if a.abs() <= PIVOT_TOL || self.lower[v] == self.upper[v] {
+                continue;
+            }
+            let up = increase == (a > 0.0);
+            if up == self.at_upper[k] {
+                continue;
+            }
+            let d = if self.at_upper[k] { -self.d[k] } else { self.d[k] };
+            candidates.push((d.max(0.0) / a.abs(), k));
+        }
+        // Equal ratios go to the larger pivot, then to the lower position.
+        candidates.sort_by(|&(ra, ka), &(rb, kb)| {
+            ra.total_cmp(&rb)
+                .then(row[kb].abs().total_cmp(&row[ka].abs()))
+                .then(ka.cmp(&kb))
+        });
+        let mut flips = Vec::new();
+        let mut chosen = None;
+        for &(_, k) in &candidates {
+            let v = self.nonbasic[k];
+            let reach = row[k].abs() * (self.upper[v] - self.lower[v]);
+            if reach.is_finite() && gap - reach > PRIMAL_TOL {
+                gap -= reach;
+                flips.push(k);
+            } else {
+                chosen = Some(k);
+                break;
+            }
+        }
+        let q = chosen?;
+        for k in flips {
+            let v = self.nonbasic[k];
+            self.at_upper[k] = !self.at_upper[k];
+            self.value[k] = if self.at_upper[k] { self.upper[v] } else { self.lower[v] };
+        }
+        Some(q)
     }
 
     /// The nonbasic position that enters for leaving row `p` (the dual ratio test), or
@@ -349,6 +472,33 @@ impl Tableau {
     }
 }
 
+/// `a . b` in four interleaved sums: a single running sum waits on each addition, and this
+/// product is most of a pivot's work.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut lanes = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4.remainder().iter().zip(b4.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in a4.zip(b4) {
+        for l in 0..4 {
+            lanes[l] += x[l] * y[l];
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
+}
+
+/// `sum(row[k]^2 * mask[k])`, in four interleaved sums like [`dot`].
+fn squares_where(row: &[f64], mask: &[f64]) -> f64 {
+    let mut lanes = [0.0; 4];
+    let (r4, m4) = (row.chunks_exact(4), mask.chunks_exact(4));
+    let tail: f64 = r4.remainder().iter().zip(m4.remainder()).map(|(x, m)| x * x * m).sum();
+    for (x, m) in r4.zip(m4) {
+        for l in 0..4 {
+            lanes[l] += x[l] * x[l] * m[l];
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
+}
+
 /// Substitute the pivot row (already solved for the entering variable) into `row`.
 fn eliminate(row: &mut [f64], pivot_row: &[f64], q: usize, inv: f64) {
     let f = row[q];
@@ -362,4 +512,4 @@ fn eliminate(row: &mut [f64], pivot_row: &[f64], q: usize, inv: f64) {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -44,6 +44,10 @@ pub struct CampaignArgs {
     /// MOBIL ego.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     baselines: bool,
+    /// With the baselines, also run the paper-literal preset (`false`: the planner, the
+    /// planner without hysteresis and the IDM + MOBIL ego only).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    paper_literal: bool,
     #[command(flatten)]
     paper: PaperArgs,
     /// Record the first `--record-trials` trials of every configuration, for every driver,
@@ -63,6 +67,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         seed,
         threads,
         baselines,
+        paper_literal,
         paper,
         record,
         record_trials,
@@ -84,7 +89,11 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
     let mut settings = CampaignSettings::new(entries, seed, threads);
     settings.baselines = baselines;
     settings.planner = common.planner_config()?;
-    settings.paper_literal = if baselines { Some(paper.config()?) } else { None };
+    settings.paper_literal = if baselines && *paper_literal {
+        Some(paper.config()?)
+    } else {
+        None
+    };
     settings.transport = transport;
     let bar = if std::io::stderr().is_terminal() {
         ProgressBar::new(settings.episode_count() as u64)

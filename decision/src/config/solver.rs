@@ -23,10 +23,11 @@ impl Backend {
     }
 }
 
-/// Solver of the exact evaluation's LP over one sequence's accelerations.
+/// Solver of the planner's small LPs: the exact evaluation's LP over one sequence's
+/// accelerations, and the MILP relaxation's LPs in the branch and bound before the MIP.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
-pub enum EvaluationLp {
+pub enum LpSolver {
     /// The dense dual simplex of `small_lp.rs` (HiGHS when it gives no verdict).
     #[default]
     Dense,
@@ -55,7 +56,11 @@ pub struct SolverSettings {
     /// Tolerance when checking a plan against the exact constraints, m.
     pub feasibility_tolerance: f64,
     /// Solver of the exact evaluation's LP (`"dense"` or `"highs"`; same optimum).
-    pub evaluation_lp: EvaluationLp,
+    pub evaluation_lp: LpSolver,
+    /// Solver of the LP relaxations in the small branch and bound (`"dense"`: the dense
+    /// simplex with steepest-edge pricing and bound flipping, HiGHS when it gives no verdict;
+    /// `"highs"`: HiGHS, the reference).
+    pub tree_lp: LpSolver,
     /// Further HiGHS options by name (`[solver.highs_options]`, e.g. `mip_detect_symmetry =
     /// false`), set after the planner's own; an unknown name or a value of the wrong type
     /// fails `Planner::new`. The planner's settings (quiet, one thread, presolve off, time
@@ -94,7 +99,8 @@ impl Default for SolverSettings {
             relaxation_first: true,
             branch_lps: 8,
             feasibility_tolerance: 1e-6,
-            evaluation_lp: EvaluationLp::Dense,
+            evaluation_lp: LpSolver::Dense,
+            tree_lp: LpSolver::Dense,
             highs_options: std::collections::BTreeMap::new(),
         }
     }

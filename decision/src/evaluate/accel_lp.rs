@@ -10,7 +10,7 @@
 //! usually a handful of rows.
 
 use super::{Mode, Requirement};
-use crate::config::EvaluationLp;
+use crate::config::LpSolver;
 use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
 use crate::model::Rollout;
 use crate::problem::Problem;
@@ -28,8 +28,8 @@ pub struct Optimum {
 /// gives no verdict (a pivot limit or a final point off its rows).
 pub fn best(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> Option<Optimum> {
     match problem.evaluation_lp {
-        EvaluationLp::Dense => by_dense(problem, r, rows, mode).unwrap_or_else(|_| by_highs(problem, r, rows, mode)),
-        EvaluationLp::Highs => by_highs(problem, r, rows, mode),
+        LpSolver::Dense => by_dense(problem, r, rows, mode).unwrap_or_else(|_| by_highs(problem, r, rows, mode)),
+        LpSolver::Highs => by_highs(problem, r, rows, mode),
     }
 }
 

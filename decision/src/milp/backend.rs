@@ -3,7 +3,7 @@
 
 use super::branch::{self, Settled, WarmStart};
 use super::{build, decode};
-use crate::config::SolverSettings;
+use crate::config::{LpSolver, SolverSettings};
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
 use crate::highs_solver::{HighsSolver, InterruptHandle, MipResult, MipStatus};
@@ -38,6 +38,8 @@ pub struct MilpBackend {
     relaxation_first: bool,
     /// LP runs the small branch and bound may spend before the MIP (`solver.branch_lps`).
     branch_lps: usize,
+    /// Solver of the branch and bound's LPs (`solver.tree_lp`).
+    tree_lp_solver: LpSolver,
 }
 
 impl MilpBackend {
@@ -58,6 +60,7 @@ impl MilpBackend {
             tree_lp,
             relaxation_first: settings.relaxation_first,
             branch_lps: settings.branch_lps,
+            tree_lp_solver: settings.tree_lp,
         })
     }
 
@@ -104,7 +107,15 @@ impl MilpBackend {
                 incumbent,
                 scored: warm,
             };
-            branch::settle(&mut self.tree_lp, problem, mode, &built, start, self.branch_lps)?
+            branch::settle(
+                &mut self.tree_lp,
+                self.tree_lp_solver,
+                problem,
+                mode,
+                &built,
+                start,
+                self.branch_lps,
+            )?
         } else {
             Settled::Open(incumbent)
         };

@@ -8,10 +8,12 @@
 //! bound reaches the best exact cost, or its LP point is integral and scored.
 
 use super::{decode, Columns};
+use crate::config::LpSolver;
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
-use crate::highs_solver::{Bounds, HighsSolver, MipModel, MipStatus};
+use crate::highs_solver::{Bounds, HighsSolver, MipModel, MipResult, MipStatus};
 use crate::problem::Problem;
+use crate::small_lp::{LpOutcome, Pricing, SmallLp};
 use crate::types::Action;
 
 /// How far from an integer an integer column of the relaxation may be (HiGHS's default
@@ -60,11 +62,92 @@ fn branching_column(model: &MipModel, values: &[f64]) -> Option<usize> {
     best.map(|(c, _)| c)
 }
 
-/// Settle a layer by branch and bound over its relaxation, within `max_lps` LP runs on `lp`
-/// (an instance of its own: the nodes' LPs keep their basis there between runs, while the
-/// exact evaluation of a rounded plan runs on the thread's LP instance).
+/// Largest relaxation (rows x columns) the dense simplex takes. Each of its pivots costs
+/// that many operations three times over, while HiGHS's run costs about 0.35 ms whatever
+/// the size (set-up, scaling, KKT report) plus cheap sparse iterations. Per LP on the bench
+/// corpus at H = 3: dense 282 us against HiGHS's 380 below 4,000 entries, 348 against 359
+/// at 6,000-8,000, 450 against 381 at 8,000-10,000; at H = 6 (about 255 x 212) 4.7 ms
+/// against 0.9.
+const DENSE_MAX_ENTRIES: usize = 7_000;
+
+/// The nodes' LP solver: the dense simplex, or HiGHS (also when the dense one gives no
+/// verdict). HiGHS's fixed cost per run (model checks, scaling, set-up, KKT report) is most
+/// of its time on relaxations of this size; the dense tableau has none of it.
+struct NodeLp<'a> {
+    model: &'a MipModel,
+    dense: Option<SmallLp>,
+    highs: &'a mut HighsSolver,
+    highs_loaded: bool,
+}
+
+impl<'a> NodeLp<'a> {
+    fn new(model: &'a MipModel, solver: LpSolver, highs: &'a mut HighsSolver) -> Self {
+        let small = model.num_rows() * model.num_cols() <= DENSE_MAX_ENTRIES;
+        let dense = (solver == LpSolver::Dense && small).then(|| dense_relaxation(model));
+        Self {
+            model,
+            dense,
+            highs,
+            highs_loaded: false,
+        }
+    }
+
+    /// The relaxation within `bounds`; with `objective_bound`, HiGHS may stop early and
+    /// report `Infeasible` when the optimum cannot come below it.
+    fn solve(&mut self, bounds: Bounds<'_>, objective_bound: Option<f64>) -> Result<MipResult, SolverError> {
+        if let Some(lp) = &mut self.dense {
+            for (c, (&lo, &hi)) in bounds.lower.iter().zip(bounds.upper).enumerate() {
+                lp.set_bounds(c, lo, hi);
+            }
+            match lp.solve_with(Pricing::SteepestEdge) {
+                Ok(LpOutcome::Optimal { x, objective }) => {
+                    return Ok(MipResult {
+                        status: MipStatus::Optimal,
+                        objective,
+                        columns: Some(x),
+                        nodes: 0,
+                    })
+                }
+                Ok(LpOutcome::Infeasible) => return Ok(MipResult::nothing_found()),
+                Err(_) => {}
+            }
+        }
+        if !self.highs_loaded {
+            self.highs.load_relaxation(self.model)?;
+            self.highs_loaded = true;
+        }
+        self.highs.resolve_within(bounds, objective_bound)
+    }
+}
+
+/// `model`'s LP relaxation as a dense LP.
+pub(super) fn dense_relaxation(model: &MipModel) -> SmallLp {
+    let mut lp = SmallLp::default();
+    for c in 0..model.num_cols() {
+        lp.add_col(model.col_cost[c], model.col_lower[c], model.col_upper[c]);
+    }
+    let mut terms = Vec::new();
+    for r in 0..model.num_rows() {
+        let start = model.row_start[r] as usize;
+        let end = model
+            .row_start
+            .get(r + 1)
+            .map_or(model.row_index.len(), |&e| e as usize);
+        terms.clear();
+        terms.extend((start..end).map(|i| (model.row_index[i] as usize, model.row_value[i])));
+        lp.add_row(model.row_lower[r], model.row_upper[r], &terms);
+    }
+    lp
+}
+
+/// Settle a layer by branch and bound over its relaxation, within `max_lps` LP runs by
+/// `solver` (HiGHS runs on `lp`, an instance of its own: the nodes' LPs keep their basis
+/// there between runs, while the exact evaluation of a rounded plan runs on the thread's LP
+/// instance).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn settle(
     lp: &mut HighsSolver,
+    solver: LpSolver,
     problem: &Problem,
     mode: Mode,
     built: &(MipModel, Columns),
@@ -80,7 +163,7 @@ pub(super) fn settle(
         lower: model.col_lower.clone(),
         upper: model.col_upper.clone(),
     }];
-    lp.load_relaxation(model)?;
+    let mut node_lp = NodeLp::new(model, solver, lp);
     let mut lps = 0;
     // The bound a node must beat: the best plan's cost.
     let target = |best: &Option<Evaluation>| best.as_ref().map(|e| e.cost);
@@ -97,7 +180,7 @@ pub(super) fn settle(
             upper: &node.upper,
         };
         // A node that cannot beat the best plan may stop early: it is pruned either way.
-        let relaxed = lp.resolve_within(bounds, target(&best))?;
+        let relaxed = node_lp.solve(bounds, target(&best))?;
         lps += 1;
         let (bound, values) = match (relaxed.status, relaxed.columns) {
             (MipStatus::Infeasible, _) => continue,

@@ -28,7 +28,12 @@ fn by_highs(lp: &SmallLp) -> Option<f64> {
 
 /// Solve densely, check the point, and compare with HiGHS.
 fn agree(lp: &SmallLp) -> Option<f64> {
-    let dense = lp.solve().expect("dense simplex");
+    agree_with(lp, Pricing::LargestViolation)
+}
+
+/// [`agree`] with the given pivot rules.
+pub(crate) fn agree_with(lp: &SmallLp, pricing: Pricing) -> Option<f64> {
+    let dense = lp.solve_with(pricing).expect("dense simplex");
     let highs = by_highs(lp);
     match (&dense, highs) {
         (LpOutcome::Optimal { x, objective }, Some(h)) => {
@@ -186,16 +191,78 @@ fn random_lp(rng: &mut ChaCha8Rng) -> SmallLp {
 
 #[test]
 fn random_evaluation_shaped_lps_agree_with_highs() {
-    let mut rng = ChaCha8Rng::seed_from_u64(11);
-    let (mut optimal, mut infeasible) = (0, 0);
-    for _ in 0..4000 {
-        match agree(&random_lp(&mut rng)) {
-            Some(_) => optimal += 1,
-            None => infeasible += 1,
+    for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let (mut optimal, mut infeasible) = (0, 0);
+        for _ in 0..4000 {
+            match agree_with(&random_lp(&mut rng), pricing) {
+                Some(_) => optimal += 1,
+                None => infeasible += 1,
+            }
         }
+        assert!(
+            optimal > 500 && infeasible > 500,
+            "{pricing:?}: {optimal} optimal, {infeasible} infeasible"
+        );
     }
-    assert!(
-        optimal > 500 && infeasible > 500,
-        "{optimal} optimal, {infeasible} infeasible"
-    );
+}
+
+/// A random relaxation shaped like the MILP's: `[0, 1]` one-hot columns chained by
+/// equalities, a boxed input, big-M rows switched by the one-hots, where flipping a box
+/// instead of pivoting it in is the common move.
+fn random_relaxation(rng: &mut ChaCha8Rng) -> SmallLp {
+    let mut lp = SmallLp::default();
+    let steps = rng.random_range(1..=4);
+    let width = rng.random_range(2..=4);
+    let mut previous: Option<Vec<usize>> = None;
+    for _ in 0..steps {
+        let hot: Vec<usize> = (0..width)
+            .map(|_| lp.add_col(rng.random_range(-1.0..3.0), 0.0, 1.0))
+            .collect();
+        let ones: Vec<(usize, f64)> = hot.iter().map(|&c| (c, 1.0)).collect();
+        lp.add_row(1.0, 1.0, &ones);
+        if let Some(prev) = &previous {
+            // A change costs: |hot - prev| <= change, change priced.
+            for (&a, &b) in hot.iter().zip(prev) {
+                let change = lp.add_col(rng.random_range(0.0..2.0), 0.0, 1.0);
+                lp.add_row(0.0, INF, &[(change, 1.0), (a, 1.0), (b, -1.0)]);
+            }
+        }
+        let u = lp.add_col(0.0, -4.0, 2.0);
+        if rng.random_bool(0.2) {
+            // A least input, beyond the box now and then: an infeasible relaxation.
+            lp.add_row(rng.random_range(0.0..2.5), INF, &[(u, 1.0)]);
+        }
+        let dev = lp.add_col(rng.random_range(0.1..2.0), 0.0, INF);
+        let target = rng.random_range(-3.0..2.0);
+        lp.add_row(target, INF, &[(dev, 1.0), (u, 1.0)]);
+        lp.add_row(-target, INF, &[(dev, 1.0), (u, -1.0)]);
+        for &h in &hot {
+            if rng.random_bool(0.5) {
+                // u <= gap + M (1 - hot): a margin that binds only in that lane.
+                let m = 6.0;
+                lp.add_row(-INF, rng.random_range(-3.0..2.0) + m, &[(u, 1.0), (h, m)]);
+            }
+        }
+        previous = Some(hot);
+    }
+    lp
+}
+
+#[test]
+fn random_relaxation_shaped_lps_agree_with_highs() {
+    for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        let (mut optimal, mut infeasible) = (0, 0);
+        for _ in 0..3000 {
+            match agree_with(&random_relaxation(&mut rng), pricing) {
+                Some(_) => optimal += 1,
+                None => infeasible += 1,
+            }
+        }
+        assert!(
+            optimal > 500 && infeasible > 50,
+            "{pricing:?}: {optimal} optimal, {infeasible} infeasible"
+        );
+    }
 }
