@@ -360,19 +360,11 @@ impl Tableau {
             self.beta[p] - self.upper[leaving]
         };
         let row = &self.t[p * n..(p + 1) * n];
-        let mut candidates: Vec<(f64, usize)> = Vec::new();
-        for (k, &a) in row.iter().enumerate() {
-            let v = self.nonbasic[k];
-            if a.abs() <= PIVOT_TOL || self.lower[v] == self.upper[v] {
-                continue;
-            }
-            let up = increase == (a > 0.0);
-            if up == self.at_upper[k] {
-                continue;
-            }
-            let d = if self.at_upper[k] { -self.d[k] } else { self.d[k] };
-            candidates.push((d.max(0.0) / a.abs(), k));
-        }
+        let mut candidates: Vec<(f64, usize)> = row
+            .iter()
+            .enumerate()
+            .filter_map(|(k, &a)| Some((self.dual_ratio(k, a, increase)?, k)))
+            .collect();
         // Equal ratios go to the larger pivot, then to the lower position.
         candidates.sort_by(|&(ra, ka), &(rb, kb)| {
             ra.total_cmp(&rb)
@@ -401,6 +393,23 @@ impl Tableau {
         Some(q)
     }
 
+    /// The dual ratio of nonbasic position `k` (entry `a` of the leaving row), or `None` when
+    /// it cannot move the row towards the bound it violates (`increase`: the lower one).
+    fn dual_ratio(&self, k: usize, a: f64, increase: bool) -> Option<f64> {
+        let v = self.nonbasic[k];
+        if a.abs() <= PIVOT_TOL || self.lower[v] == self.upper[v] {
+            return None;
+        }
+        // Direction the nonbasic must move for the row to move the right way.
+        let up = increase == (a > 0.0);
+        if up == self.at_upper[k] {
+            return None;
+        }
+        // The reduced cost's sign is right up to rounding; clamp the rest to zero.
+        let d = if self.at_upper[k] { -self.d[k] } else { self.d[k] };
+        Some(d.max(0.0) / a.abs())
+    }
+
     /// The nonbasic position that enters for leaving row `p` (the dual ratio test), or
     /// `None` when none can move the row towards its bound: the LP is infeasible.
     fn entering(&self, p: usize, bland: bool) -> Option<usize> {
@@ -408,18 +417,9 @@ impl Tableau {
         let row = &self.t[p * self.n..(p + 1) * self.n];
         let mut best: Option<(usize, f64)> = None;
         for (k, &a) in row.iter().enumerate() {
-            let v = self.nonbasic[k];
-            if a.abs() <= PIVOT_TOL || self.lower[v] == self.upper[v] {
+            let Some(ratio) = self.dual_ratio(k, a, increase) else {
                 continue;
-            }
-            // Direction the nonbasic must move for the row to move the right way.
-            let up = increase == (a > 0.0);
-            if up == self.at_upper[k] {
-                continue;
-            }
-            // The reduced cost's sign is right up to rounding; clamp the rest to zero.
-            let d = if self.at_upper[k] { -self.d[k] } else { self.d[k] };
-            let ratio = d.max(0.0) / a.abs();
+            };
             let better = match best {
                 None => true,
                 Some((b, r)) => {
@@ -428,7 +428,7 @@ impl Tableau {
                     } else if ratio > r + RATIO_TIE {
                         false
                     } else if bland {
-                        v < self.nonbasic[b]
+                        self.nonbasic[k] < self.nonbasic[b]
                     } else {
                         a.abs() > row[b].abs()
                     }

@@ -189,22 +189,28 @@ fn random_lp(rng: &mut ChaCha8Rng) -> SmallLp {
     lp
 }
 
+/// `count` random LPs from `generate` agree with HiGHS under both pivot rules; returns the
+/// numbers of optimal and infeasible ones (the same under both rules).
+fn random_lps_agree(seed: u64, count: usize, generate: fn(&mut ChaCha8Rng) -> SmallLp) -> (usize, usize) {
+    let mut tally = Vec::new();
+    for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let optimal = (0..count)
+            .filter(|_| agree_with(&generate(&mut rng), pricing).is_some())
+            .count();
+        tally.push((optimal, count - optimal));
+    }
+    assert_eq!(tally[0], tally[1]);
+    tally[0]
+}
+
 #[test]
 fn random_evaluation_shaped_lps_agree_with_highs() {
-    for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let (mut optimal, mut infeasible) = (0, 0);
-        for _ in 0..4000 {
-            match agree_with(&random_lp(&mut rng), pricing) {
-                Some(_) => optimal += 1,
-                None => infeasible += 1,
-            }
-        }
-        assert!(
-            optimal > 500 && infeasible > 500,
-            "{pricing:?}: {optimal} optimal, {infeasible} infeasible"
-        );
-    }
+    let (optimal, infeasible) = random_lps_agree(11, 4000, random_lp);
+    assert!(
+        optimal > 500 && infeasible > 500,
+        "{optimal} optimal, {infeasible} infeasible"
+    );
 }
 
 /// A random relaxation shaped like the MILP's: `[0, 1]` one-hot columns chained by
@@ -251,18 +257,9 @@ fn random_relaxation(rng: &mut ChaCha8Rng) -> SmallLp {
 
 #[test]
 fn random_relaxation_shaped_lps_agree_with_highs() {
-    for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
-        let mut rng = ChaCha8Rng::seed_from_u64(23);
-        let (mut optimal, mut infeasible) = (0, 0);
-        for _ in 0..3000 {
-            match agree_with(&random_relaxation(&mut rng), pricing) {
-                Some(_) => optimal += 1,
-                None => infeasible += 1,
-            }
-        }
-        assert!(
-            optimal > 500 && infeasible > 50,
-            "{pricing:?}: {optimal} optimal, {infeasible} infeasible"
-        );
-    }
+    let (optimal, infeasible) = random_lps_agree(23, 3000, random_relaxation);
+    assert!(
+        optimal > 500 && infeasible > 50,
+        "{optimal} optimal, {infeasible} infeasible"
+    );
 }
