@@ -243,6 +243,12 @@ struct Tableau {
     value: Vec<f64>,
     at_upper: Vec<bool>,
     beta: Vec<f64>,
+    /// 1.0 where a nonbasic position holds a row activity, else 0.0 (kept by `pivot`; the
+    /// steepest-edge weights sum over these).
+    logical_mask: Vec<f64>,
+    /// The bound-flipping test's candidates and flips, kept to spare an allocation a pivot.
+    candidates: Vec<(f64, usize)>,
+    flips: Vec<usize>,
 }
 
 impl Tableau {
@@ -279,6 +285,9 @@ impl Tableau {
             value,
             at_upper,
             beta: vec![0.0; m],
+            logical_mask: vec![0.0; n],
+            candidates: Vec::new(),
+            flips: Vec::new(),
         })
     }
 
@@ -323,12 +332,6 @@ impl Tableau {
     /// of `B^-1` is read off the tableau: its entries at the nonbasic row activities, and a
     /// 1 where `p` itself holds a row activity.
     fn leaving_steepest(&self) -> Option<usize> {
-        // 1 at the nonbasic row activities, 0 elsewhere.
-        let logicals: Vec<f64> = self
-            .nonbasic
-            .iter()
-            .map(|&v| f64::from(u8::from(v >= self.n)))
-            .collect();
         let mut best: Option<(usize, f64)> = None;
         for i in 0..self.m {
             let viol = self.violation(i);
@@ -337,7 +340,7 @@ impl Tableau {
             }
             let row = &self.t[i * self.n..(i + 1) * self.n];
             let own = if self.basic[i] >= self.n { 1.0 } else { 0.0 };
-            let weight = own + squares_where(row, &logicals);
+            let weight = own + squares_where(row, &self.logical_mask);
             let score = viol * viol / weight.max(1e-12);
             if best.is_none_or(|(_, s)| score > s) {
                 best = Some((i, score));
@@ -359,19 +362,22 @@ impl Tableau {
         } else {
             self.beta[p] - self.upper[leaving]
         };
+        let mut candidates = std::mem::take(&mut self.candidates);
+        let mut flips = std::mem::take(&mut self.flips);
+        candidates.clear();
+        flips.clear();
         let row = &self.t[p * n..(p + 1) * n];
-        let mut candidates: Vec<(f64, usize)> = row
-            .iter()
-            .enumerate()
-            .filter_map(|(k, &a)| Some((self.dual_ratio(k, a, increase)?, k)))
-            .collect();
+        candidates.extend(
+            row.iter()
+                .enumerate()
+                .filter_map(|(k, &a)| Some((self.dual_ratio(k, a, increase)?, k))),
+        );
         // Equal ratios go to the larger pivot, then to the lower position.
         candidates.sort_by(|&(ra, ka), &(rb, kb)| {
             ra.total_cmp(&rb)
                 .then(row[kb].abs().total_cmp(&row[ka].abs()))
                 .then(ka.cmp(&kb))
         });
-        let mut flips = Vec::new();
         let mut chosen = None;
         for &(_, k) in &candidates {
             let v = self.nonbasic[k];
@@ -384,13 +390,16 @@ impl Tableau {
                 break;
             }
         }
-        let q = chosen?;
-        for k in flips {
-            let v = self.nonbasic[k];
-            self.at_upper[k] = !self.at_upper[k];
-            self.value[k] = if self.at_upper[k] { self.upper[v] } else { self.lower[v] };
+        if chosen.is_some() {
+            for &k in &flips {
+                let v = self.nonbasic[k];
+                self.at_upper[k] = !self.at_upper[k];
+                self.value[k] = if self.at_upper[k] { self.upper[v] } else { self.lower[v] };
+            }
         }
-        Some(q)
+        self.candidates = candidates;
+        self.flips = flips;
+        chosen
     }
 
     /// The dual ratio of nonbasic position `k` (entry `a` of the leaving row), or `None` when
@@ -463,6 +472,7 @@ impl Tableau {
         eliminate(&mut self.d, pivot_row, q, inv);
         self.basic[p] = self.nonbasic[q];
         self.nonbasic[q] = leaving;
+        self.logical_mask[q] = f64::from(u8::from(leaving >= n));
         self.at_upper[q] = !increase;
         self.value[q] = if increase {
             self.lower[leaving]

@@ -1,9 +1,9 @@
 //! The MILP backend: the warm candidates, the LP relaxation and its small branch and bound
 //! that settle most layers (`branch.rs`), and the HiGHS MIP run for the rest.
 
-use super::branch::{self, Settled, WarmStart};
+use super::branch::{self, Settled, TreeLp, WarmStart};
 use super::{build, decode};
-use crate::config::{LpSolver, SolverSettings};
+use crate::config::SolverSettings;
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
 use crate::highs_solver::{HighsSolver, InterruptHandle, MipResult, MipStatus};
@@ -31,15 +31,14 @@ pub struct LayerOutcome {
 /// The MILP backend: one long-lived HiGHS instance.
 pub struct MilpBackend {
     solver: HighsSolver,
-    /// The branch and bound's LP instance (no time limit: HiGHS's LP clock runs on across
-    /// the runs of one instance, and these LPs end in microseconds).
-    tree_lp: HighsSolver,
+    /// The branch and bound's LP solvers (`solver.tree_lp`; HiGHS's instance has no time
+    /// limit: its LP clock runs on across the runs of one instance, and these LPs end in
+    /// microseconds).
+    tree_lp: TreeLp,
     /// Try the LP relaxation before the MIP (`solver.relaxation_first`).
     relaxation_first: bool,
     /// LP runs the small branch and bound may spend before the MIP (`solver.branch_lps`).
     branch_lps: usize,
-    /// Solver of the branch and bound's LPs (`solver.tree_lp`).
-    tree_lp_solver: LpSolver,
 }
 
 impl MilpBackend {
@@ -57,10 +56,12 @@ impl MilpBackend {
         }
         Ok(Self {
             solver,
-            tree_lp,
+            tree_lp: TreeLp {
+                highs: tree_lp,
+                solver: settings.tree_lp,
+            },
             relaxation_first: settings.relaxation_first,
             branch_lps: settings.branch_lps,
-            tree_lp_solver: settings.tree_lp,
         })
     }
 
@@ -107,15 +108,7 @@ impl MilpBackend {
                 incumbent,
                 scored: warm,
             };
-            branch::settle(
-                &mut self.tree_lp,
-                self.tree_lp_solver,
-                problem,
-                mode,
-                &built,
-                start,
-                self.branch_lps,
-            )?
+            branch::settle(&mut self.tree_lp, problem, mode, &built, start, self.branch_lps)?
         } else {
             Settled::Open(incumbent)
         };

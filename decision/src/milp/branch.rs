@@ -70,7 +70,15 @@ fn branching_column(model: &MipModel, values: &[f64]) -> Option<usize> {
 /// against 0.9.
 const DENSE_MAX_ENTRIES: usize = 7_000;
 
-/// The nodes' LP solver: the dense simplex, or HiGHS (also when the dense one gives no
+/// The tree's LP solvers, kept by the backend: HiGHS on an instance of its own (the nodes'
+/// LPs keep their basis there between runs, while the exact evaluation of a rounded plan
+/// runs on the thread's LP instance), and which one takes the small relaxations.
+pub(super) struct TreeLp {
+    pub highs: HighsSolver,
+    pub solver: LpSolver,
+}
+
+/// One layer's node LPs: the dense simplex, or HiGHS (also when the dense one gives no
 /// verdict). HiGHS's fixed cost per run (model checks, scaling, set-up, KKT report) is most
 /// of its time on relaxations of this size; the dense tableau has none of it.
 struct NodeLp<'a> {
@@ -81,13 +89,13 @@ struct NodeLp<'a> {
 }
 
 impl<'a> NodeLp<'a> {
-    fn new(model: &'a MipModel, solver: LpSolver, highs: &'a mut HighsSolver) -> Self {
+    fn new(model: &'a MipModel, tree: &'a mut TreeLp) -> Self {
         let small = model.num_rows() * model.num_cols() <= DENSE_MAX_ENTRIES;
-        let dense = (solver == LpSolver::Dense && small).then(|| dense_relaxation(model));
+        let dense = (tree.solver == LpSolver::Dense && small).then(|| dense_relaxation(model));
         Self {
             model,
             dense,
-            highs,
+            highs: &mut tree.highs,
             highs_loaded: false,
         }
     }
@@ -140,14 +148,10 @@ pub(super) fn dense_relaxation(model: &MipModel) -> SmallLp {
     lp
 }
 
-/// Settle a layer by branch and bound over its relaxation, within `max_lps` LP runs by
-/// `solver` (HiGHS runs on `lp`, an instance of its own: the nodes' LPs keep their basis
-/// there between runs, while the exact evaluation of a rounded plan runs on the thread's LP
-/// instance).
-#[allow(clippy::too_many_arguments)]
+/// Settle a layer by branch and bound over its relaxation, within `max_lps` LP runs on
+/// `tree`.
 pub(super) fn settle(
-    lp: &mut HighsSolver,
-    solver: LpSolver,
+    tree: &mut TreeLp,
     problem: &Problem,
     mode: Mode,
     built: &(MipModel, Columns),
@@ -163,7 +167,7 @@ pub(super) fn settle(
         lower: model.col_lower.clone(),
         upper: model.col_upper.clone(),
     }];
-    let mut node_lp = NodeLp::new(model, solver, lp);
+    let mut node_lp = NodeLp::new(model, tree);
     let mut lps = 0;
     // The bound a node must beat: the best plan's cost.
     let target = |best: &Option<Evaluation>| best.as_ref().map(|e| e.cost);

@@ -213,9 +213,9 @@ fn random_evaluation_shaped_lps_agree_with_highs() {
     );
 }
 
-/// A random relaxation shaped like the MILP's: `[0, 1]` one-hot columns chained by
-/// equalities, a boxed input, big-M rows switched by the one-hots, where flipping a box
-/// instead of pivoting it in is the common move.
+/// A random relaxation shaped like the MILP's: `[0, 1]` one-hots (each summing to 1) with a
+/// priced change between steps, a boxed input, big-M rows switched by the one-hots, where
+/// flipping a box instead of pivoting it in is the common move.
 fn random_relaxation(rng: &mut ChaCha8Rng) -> SmallLp {
     let mut lp = SmallLp::default();
     let steps = rng.random_range(1..=4);
