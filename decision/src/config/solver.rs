@@ -97,7 +97,7 @@ impl Default for SolverSettings {
             time_limit_s: 0.3,
             warm_start: true,
             relaxation_first: true,
-            branch_lps: 8,
+            branch_lps: 64,
             feasibility_tolerance: 1e-6,
             evaluation_lp: LpSolver::Dense,
             tree_lp: LpSolver::Dense,

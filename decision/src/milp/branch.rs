@@ -13,8 +13,9 @@ use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
 use crate::highs_solver::{Bounds, HighsSolver, MipModel, MipResult, MipStatus};
 use crate::problem::Problem;
-use crate::small_lp::{LpOutcome, Pricing, SmallLp};
+use crate::small_lp::{FinalTableau, LpOutcome, Pricing, SmallLp};
 use crate::types::Action;
+use std::rc::Rc;
 
 /// How far from an integer an integer column of the relaxation may be (HiGHS's default
 /// `mip_feasibility_tolerance`).
@@ -43,6 +44,8 @@ struct Node {
     bound: f64,
     lower: Vec<f64>,
     upper: Vec<f64>,
+    /// The parent's final dense tableau, the child's start (shared by both children).
+    start: Option<Rc<FinalTableau>>,
 }
 
 fn meets(bound: f64, cost: f64) -> bool {
@@ -62,13 +65,14 @@ fn branching_column(model: &MipModel, values: &[f64]) -> Option<usize> {
     best.map(|(c, _)| c)
 }
 
-/// Largest relaxation (rows x columns) the dense simplex takes. Each of its pivots costs
-/// that many operations three times over, while HiGHS's run costs about 0.35 ms whatever
-/// the size (set-up, scaling, KKT report) plus cheap sparse iterations. Per LP on the bench
-/// corpus at H = 3: dense 282 us against HiGHS's 380 below 4,000 entries, 348 against 359
-/// at 6,000-8,000, 450 against 381 at 8,000-10,000; at H = 6 (about 255 x 212) 4.7 ms
-/// against 0.9.
-const DENSE_MAX_ENTRIES: usize = 7_000;
+/// Largest relaxation (rows x columns) the dense simplex takes. A dense pivot costs that
+/// many operations a few times over, while a HiGHS run costs about 0.35 ms whatever the
+/// size (set-up, scaling, KKT report) plus cheap sparse iterations. The root's tableau
+/// starts from scratch (tens of pivots); a child starts from its parent's (a few). On the
+/// 0.1 campaign slice, 7,000 / 20,000 / 60,000 entries gave a mean solve of 0.48 / 0.29 /
+/// 0.27 ms (most 4-lane layers at `H = 3` and `H = 6` single, about 255 x 212, fall
+/// between); 250,000 (the combined actions at `H = 6`) doubled that cell's p50 and p99.
+const DENSE_MAX_ENTRIES: usize = 60_000;
 
 /// The tree's LP solvers, kept by the backend: HiGHS on an instance of its own (the nodes'
 /// LPs keep their basis there between runs, while the exact evaluation of a rounded plan
@@ -100,23 +104,30 @@ impl<'a> NodeLp<'a> {
         }
     }
 
-    /// The relaxation within `bounds`; with `objective_bound`, HiGHS may stop early and
-    /// report `Infeasible` when the optimum cannot come below it.
-    fn solve(&mut self, bounds: Bounds<'_>, objective_bound: Option<f64>) -> Result<MipResult, SolverError> {
+    /// The relaxation within `bounds`, the dense one from the parent's final tableau
+    /// `start`, with the final tableau to start the children from; with `objective_bound`,
+    /// HiGHS may stop early and report `Infeasible` when the optimum cannot come below it.
+    fn solve(
+        &mut self,
+        bounds: Bounds<'_>,
+        start: Option<&FinalTableau>,
+        objective_bound: Option<f64>,
+    ) -> Result<(MipResult, Option<FinalTableau>), SolverError> {
         if let Some(lp) = &mut self.dense {
             for (c, (&lo, &hi)) in bounds.lower.iter().zip(bounds.upper).enumerate() {
                 lp.set_bounds(c, lo, hi);
             }
-            match lp.solve_with(Pricing::SteepestEdge) {
-                Ok(LpOutcome::Optimal { x, objective }) => {
-                    return Ok(MipResult {
+            match lp.solve_from(Pricing::SteepestEdge, start) {
+                Ok((LpOutcome::Optimal { x, objective }, tableau)) => {
+                    let result = MipResult {
                         status: MipStatus::Optimal,
                         objective,
                         columns: Some(x),
                         nodes: 0,
-                    })
+                    };
+                    return Ok((result, tableau));
                 }
-                Ok(LpOutcome::Infeasible) => return Ok(MipResult::nothing_found()),
+                Ok((LpOutcome::Infeasible, _)) => return Ok((MipResult::nothing_found(), None)),
                 Err(_) => {}
             }
         }
@@ -124,7 +135,7 @@ impl<'a> NodeLp<'a> {
             self.highs.load_relaxation(self.model)?;
             self.highs_loaded = true;
         }
-        self.highs.resolve_within(bounds, objective_bound)
+        Ok((self.highs.resolve_within(bounds, objective_bound)?, None))
     }
 }
 
@@ -166,6 +177,7 @@ pub(super) fn settle(
         bound: f64::NEG_INFINITY,
         lower: model.col_lower.clone(),
         upper: model.col_upper.clone(),
+        start: None,
     }];
     let mut node_lp = NodeLp::new(model, tree);
     let mut lps = 0;
@@ -184,7 +196,7 @@ pub(super) fn settle(
             upper: &node.upper,
         };
         // A node that cannot beat the best plan may stop early: it is pruned either way.
-        let relaxed = node_lp.solve(bounds, target(&best))?;
+        let (relaxed, tableau) = node_lp.solve(bounds, node.start.as_deref(), target(&best))?;
         lps += 1;
         let (bound, values) = match (relaxed.status, relaxed.columns) {
             (MipStatus::Infeasible, _) => continue,
@@ -214,14 +226,17 @@ pub(super) fn settle(
                 continue;
             }
         }
+        let start = tableau.map(Rc::new);
         let mut down = Node {
             bound,
             lower: node.lower.clone(),
             upper: node.upper.clone(),
+            start: start.clone(),
         };
         down.upper[column] = values[column].floor();
         let mut up = node;
         up.bound = bound;
+        up.start = start;
         up.lower[column] = values[column].ceil();
         open.push(down);
         open.push(up);

@@ -33,9 +33,13 @@ fn agree(lp: &SmallLp) -> Option<f64> {
 
 /// [`agree`] with the given pivot rules.
 pub(crate) fn agree_with(lp: &SmallLp, pricing: Pricing) -> Option<f64> {
-    let dense = lp.solve_with(pricing).expect("dense simplex");
+    checked(lp, &lp.solve_with(pricing).expect("dense simplex"))
+}
+
+/// Check the dense outcome's point against `lp` and its verdict against HiGHS's.
+fn checked(lp: &SmallLp, dense: &LpOutcome) -> Option<f64> {
     let highs = by_highs(lp);
-    match (&dense, highs) {
+    match (dense, highs) {
         (LpOutcome::Optimal { x, objective }, Some(h)) => {
             assert!(
                 (objective - h).abs() <= 1e-7 * (1.0 + h.abs()),
@@ -261,5 +265,46 @@ fn random_relaxation_shaped_lps_agree_with_highs() {
     assert!(
         optimal > 500 && infeasible > 50,
         "{optimal} optimal, {infeasible} infeasible"
+    );
+}
+
+/// A branch and bound's re-solves: each LP is solved from its parent's final tableau after
+/// one `[0, 1]` column of the parent's point is fixed, down to three levels, and must match
+/// HiGHS on the child LP solved from scratch.
+#[test]
+fn restarts_from_a_parents_tableau_agree_with_highs() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let (mut restarts, mut infeasible) = (0, 0);
+    for _ in 0..1500 {
+        let mut lp = random_relaxation(&mut rng);
+        let (mut outcome, mut tableau) = lp.solve_from(Pricing::SteepestEdge, None).expect("dense simplex");
+        checked(&lp, &outcome);
+        for _depth in 0..3 {
+            let (LpOutcome::Optimal { x, .. }, Some(parent)) = (&outcome, &tableau) else {
+                break;
+            };
+            let free: Vec<usize> = (0..lp.num_cols()).filter(|&c| lp.bounds(c) == (0.0, 1.0)).collect();
+            if free.is_empty() {
+                break;
+            }
+            let c = free[rng.random_range(0..free.len())];
+            // Mostly against the parent's point (the usual branch), now and then with it.
+            let fixed = if rng.random_bool(0.8) {
+                (1.0 - x[c]).round()
+            } else {
+                x[c].round()
+            };
+            lp.set_bounds(c, fixed, fixed);
+            assert!(parent.0.clone().restart(&lp), "a fixed box keeps every bound finite");
+            (outcome, tableau) = lp
+                .solve_from(Pricing::SteepestEdge, Some(parent))
+                .expect("dense simplex");
+            restarts += 1;
+            infeasible += usize::from(checked(&lp, &outcome).is_none());
+        }
+    }
+    assert!(
+        restarts > 2000 && infeasible > 100,
+        "{restarts} restarts, {infeasible} infeasible"
     );
 }
