@@ -2,6 +2,9 @@
 
 use super::{Pricing, SmallLp, SmallLpError, PIVOT_TOL, PRIMAL_TOL, RATIO_TIE};
 
+/// A reduced cost this close to zero may sit at either bound on a restart.
+const DUAL_ZERO: f64 = 1e-9;
+
 /// The condensed tableau: basic variable `i` equals `sum_k t[i][k] * nonbasic_k`. Variables
 /// `0..n` are the columns, `n..n + m` the row activities. A solved tableau is also the start
 /// of a re-solve with other bounds: its reduced costs do not depend on them.
@@ -93,13 +96,16 @@ impl Tableau {
         for k in 0..self.n {
             let v = self.nonbasic[k];
             let (lo, hi, d) = (self.lower[v], self.upper[v], self.d[k]);
-            // A fixed position may sit on either side; a free one must keep its sign.
-            let up = if d > 0.0 {
+            // The side the reduced cost's sign asks for; at a zero one (to rounding) either
+            // side is dual feasible, and staying where the parent had it moves the least.
+            let up = if d > DUAL_ZERO {
                 false
-            } else if d < 0.0 {
+            } else if d < -DUAL_ZERO {
                 true
+            } else if self.at_upper[k] {
+                hi.is_finite() || !lo.is_finite()
             } else {
-                (self.at_upper[k] && hi.is_finite()) || !lo.is_finite()
+                !lo.is_finite()
             };
             let value = if up { hi } else { lo };
             if !value.is_finite() {
