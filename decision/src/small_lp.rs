@@ -1,4 +1,6 @@
-//! A dense bounded-variable dual simplex for the exact evaluation's LP.
+//! A dense bounded-variable dual simplex for the exact evaluation's LP and for the MILP's
+//! relaxations in the small branch and bound (`milp/branch.rs`), where a child node
+//! re-solves from its parent's final tableau ([`SmallLp::solve_from`]).
 //!
 //! That LP has at most `H <= 6` boxed accelerations, a few non-negative auxiliary columns
 //! with non-negative costs and some tens of rows once the rows a box already satisfies are
