@@ -185,12 +185,9 @@ impl SmallLp {
     pub fn solve_from(
         &self,
         pricing: Pricing,
-        start: Option<&FinalTableau>,
+        start: Option<FinalTableau>,
     ) -> Result<(LpOutcome, Option<FinalTableau>), SmallLpError> {
-        let restarted = start.and_then(|s| {
-            let mut t = s.0.clone();
-            t.restart(self).then_some(t)
-        });
+        let restarted = start.and_then(|FinalTableau(mut t)| t.restart(self).then_some(t));
         let mut tableau = match restarted {
             Some(t) => t,
             None => Tableau::new(self)?,

@@ -110,7 +110,7 @@ impl<'a> NodeLp<'a> {
     fn solve(
         &mut self,
         bounds: Bounds<'_>,
-        start: Option<&FinalTableau>,
+        start: Option<FinalTableau>,
         objective_bound: Option<f64>,
     ) -> Result<(MipResult, Option<FinalTableau>), SolverError> {
         if let Some(lp) = &mut self.dense {
@@ -190,13 +190,18 @@ pub(super) fn settle(
         if lps == max_lps.max(1) {
             return Ok(Settled::Open(best));
         }
-        let node = open.swap_remove(at);
+        let mut node = open.swap_remove(at);
+        // The parent's tableau, copied only while the sibling still needs it.
+        let start = node
+            .start
+            .take()
+            .map(|shared| Rc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone()));
         let bounds = Bounds {
             lower: &node.lower,
             upper: &node.upper,
         };
         // A node that cannot beat the best plan may stop early: it is pruned either way.
-        let (relaxed, tableau) = node_lp.solve(bounds, node.start.as_deref(), target(&best))?;
+        let (relaxed, tableau) = node_lp.solve(bounds, start, target(&best))?;
         lps += 1;
         let (bound, values) = match (relaxed.status, relaxed.columns) {
             (MipStatus::Infeasible, _) => continue,

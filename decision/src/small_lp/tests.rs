@@ -297,7 +297,7 @@ fn restarts_from_a_parents_tableau_agree_with_highs() {
             lp.set_bounds(c, fixed, fixed);
             assert!(parent.0.clone().restart(&lp), "a fixed box keeps every bound finite");
             (outcome, tableau) = lp
-                .solve_from(Pricing::SteepestEdge, Some(parent))
+                .solve_from(Pricing::SteepestEdge, Some(parent.clone()))
                 .expect("dense simplex");
             restarts += 1;
             infeasible += usize::from(checked(&lp, &outcome).is_none());
