@@ -38,4 +38,4 @@ pub use types::{
     Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, SetPoint, Situation,
     SolveStats, SvObservation, Threat,
 };
-pub use validate::{MAX_INPUT_SVS, NEGATIVE_SPEED_TOLERANCE_MPS};
+pub use validate::{ValidSituation, MAX_INPUT_SVS, NEGATIVE_SPEED_TOLERANCE_MPS};

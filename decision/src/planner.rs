@@ -12,7 +12,7 @@ use crate::milp::MilpBackend;
 use crate::model::transition;
 use crate::problem::{prepare, Problem};
 use crate::types::{Action, Decision, Layer, Maneuver, PlanStep, SetPoint, Situation, SolveStats};
-use crate::validate::{normalised, validate};
+use crate::validate::ValidSituation;
 
 /// A planner: configuration plus, for the MILP backend, one long-lived HiGHS instance.
 /// It holds no decision state — the memory travels in `Situation` and `Decision` — but it
@@ -59,12 +59,23 @@ impl Planner {
         Ok(())
     }
 
-    /// Decide: validate, refresh hysteresis, build the problem, solve the nominal MPC, then
-    /// Layer A if it is infeasible, then Layer B if that is infeasible too.
+    /// Decide: validate, then [`Planner::decide_valid`].
     pub fn decide(&mut self, situation: &Situation) -> Result<Decision, DecisionError> {
         let started = Instant::now();
-        validate(&self.config, situation)?;
-        let situation = &normalised(situation);
+        let valid = ValidSituation::new(&self.config, situation)?;
+        self.decide_from(&valid, started)
+    }
+
+    /// Decide on a situation validated against this planner's configuration: refresh
+    /// hysteresis, build the problem, solve the nominal MPC, then Layer A if it is
+    /// infeasible, then Layer B if that is infeasible too. Fails only when the solver does.
+    pub fn decide_valid(&mut self, situation: &ValidSituation) -> Result<Decision, DecisionError> {
+        self.decide_from(situation, Instant::now())
+    }
+
+    /// [`Planner::decide_valid`], its total time counted from `started`.
+    fn decide_from(&mut self, situation: &ValidSituation, started: Instant) -> Result<Decision, DecisionError> {
+        let situation = situation.get();
         let prepared = prepare(&self.config, situation);
         let problem = &prepared.problem;
         let mut stats = SolveStats {
@@ -228,12 +239,11 @@ pub(crate) fn fallback_decision(
     }
 }
 
-/// The fallback decision for a situation, without solving: what a watchdog answers when a
-/// solve overruns. Validates like `decide`.
-pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<Decision, DecisionError> {
+/// The fallback decision for a validated situation, without solving: what a watchdog answers
+/// when a solve overruns, and what a vehicle does when no answer comes.
+pub fn fallback_only(config: &PlannerConfig, situation: &ValidSituation) -> Decision {
     let started = Instant::now();
-    validate(config, situation)?;
-    let situation = &normalised(situation);
+    let situation = situation.get();
     let prepared = prepare(config, situation);
     let stats = SolveStats {
         svs_considered: prepared.problem.svs.len(),
@@ -243,7 +253,7 @@ pub fn fallback_only(config: &PlannerConfig, situation: &Situation) -> Result<De
     };
     let mut d = fallback_decision(config, situation, &prepared.problem, stats, prepared.memory.clone());
     d.stats.total_us = started.elapsed().as_micros() as u64;
-    Ok(d)
+    d
 }
 
 #[cfg(test)]

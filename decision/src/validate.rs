@@ -45,8 +45,28 @@ fn speed(field: &'static str, value: f64) -> Result<(), InputError> {
     within(field, value, -NEGATIVE_SPEED_TOLERANCE_MPS, MAX_SPEED_MPS)
 }
 
+/// A situation that passed [`validate`] against a configuration, with the measurement
+/// tolerances applied ([`normalised`]): what the planner decides on. Built only by
+/// [`ValidSituation::new`], so a holder never checks it again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidSituation(Situation);
+
+impl ValidSituation {
+    /// Checks `situation` against `config` (the lane count and the horizon are the
+    /// configuration's) and applies the tolerances.
+    pub fn new(config: &PlannerConfig, situation: &Situation) -> Result<Self, InputError> {
+        validate(config, situation)?;
+        Ok(Self(normalised(situation)))
+    }
+
+    /// The situation, tolerances applied.
+    pub fn get(&self) -> &Situation {
+        &self.0
+    }
+}
+
 /// Check a situation against the configuration.
-pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError> {
+fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError> {
     let road = &s.road;
     if road.lanes == 0 || road.lanes > config.perception.max_lanes {
         return Err(InputError::LaneCount {
@@ -159,7 +179,7 @@ pub fn validate(config: &PlannerConfig, s: &Situation) -> Result<(), InputError>
 
 /// The situation with measurement tolerances applied: speeds within
 /// [`NEGATIVE_SPEED_TOLERANCE_MPS`] below zero read as 0. Call after [`validate`].
-pub fn normalised(s: &Situation) -> Situation {
+fn normalised(s: &Situation) -> Situation {
     let mut out = s.clone();
     out.ego.v_mps = out.ego.v_mps.max(0.0);
     out.ego.desired_speed_mps = out.ego.desired_speed_mps.max(0.0);

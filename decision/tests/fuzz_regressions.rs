@@ -2,7 +2,9 @@
 //! the decision core must refuse them with a typed error, never panic, and its decisions must
 //! fit the protocol.
 
-use decision::{fallback_only, Backend, DecisionError, EgoState, InputError, Maneuver, Planner, PlannerConfig, Road};
+use decision::{
+    fallback_only, Backend, DecisionError, EgoState, InputError, Maneuver, Planner, PlannerConfig, Road, ValidSituation,
+};
 use decision::{PlannerMemory, Situation};
 
 fn situation(lane_width_m: f64, ego_y_m: f64) -> Situation {
@@ -30,6 +32,12 @@ fn enumeration() -> Planner {
     Planner::new(config).unwrap()
 }
 
+/// The fallback of a situation the input checks accept.
+fn valid_fallback(s: &decision::Situation) -> Result<decision::Decision, DecisionError> {
+    let config = PlannerConfig::default();
+    Ok(fallback_only(&config, &ValidSituation::new(&config, s)?))
+}
+
 /// A lane width just above zero used to pass the range check, and a lateral position a
 /// little below zero was then more than 2^63 lanes off the road: `nearest_lane` rounded it to
 /// `i64::MAX` and added 1, which overflowed. Such widths are now refused, and a position
@@ -41,7 +49,7 @@ fn lateral_position_far_off_a_very_narrow_road_is_a_typed_error() {
         let refused = |r: &Result<decision::Decision, DecisionError>| matches!(r, Err(DecisionError::Input(e)) if e.to_string().contains("road.lane_width_m"));
         let decided = enumeration().decide(&s);
         assert!(refused(&decided), "width {width}: {decided:?}");
-        let fallback = fallback_only(&PlannerConfig::default(), &s);
+        let fallback = valid_fallback(&s);
         assert!(refused(&fallback), "width {width}: {fallback:?}");
     }
     for (width, y) in [(1.0, -9.0e6), (1.0, 9.9e6), (20.0, -9.9e6)] {
@@ -57,7 +65,7 @@ fn lateral_position_far_off_a_very_narrow_road_is_a_typed_error() {
         };
         let decided = enumeration().decide(&s);
         assert!(expected(&decided), "width {width}, y {y}: {decided:?}");
-        let fallback = fallback_only(&PlannerConfig::default(), &s);
+        let fallback = valid_fallback(&s);
         assert!(expected(&fallback), "width {width}, y {y}: {fallback:?}");
     }
 }
@@ -74,7 +82,7 @@ fn fallback_from_accelerating_to_braking_is_a_valid_action() {
     s.ego.desired_speed_mps = 15.0;
     s.ego.maneuver.beta = 1;
     s.svs.push(decision::SvObservation::new(3, 15.0, 3.5, 0.0, 0.0));
-    let d = fallback_only(&PlannerConfig::default(), &s).unwrap();
+    let d = valid_fallback(&s).unwrap();
     assert_eq!(d.next_maneuver.beta, -1, "the fallback brakes: {d:?}");
     let unit = |a: decision::Action| (-1..=1).contains(&a.lateral) && (-1..=1).contains(&a.longitudinal);
     assert!(unit(d.action), "{d:?}");

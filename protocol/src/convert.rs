@@ -111,8 +111,8 @@ impl PlanRequest {
         })
     }
 
-    /// The situation for the decision core. Run [`PlanRequest::validate`] first on a payload
-    /// received over shared memory.
+    /// The situation for the decision core, unchecked ([`PlanRequest::validate`] checks it on
+    /// the way to an answer).
     pub fn to_situation(&self) -> decision::Situation {
         decision::Situation {
             road: self.road.into(),
@@ -202,43 +202,4 @@ impl From<&decision::InputError> for RejectReason {
         // Cannot fail: the conversion above only builds known reasons.
         Rejected::from(e).reason().unwrap_or(RejectReason::InternalError)
     }
-}
-
-/// The planner's answer to `request`, the one path from a request to its response that the
-/// service and an in-process channel share: wire checks, the decision, the conversion back.
-/// `queue_us` is 0 (the caller sets it when the request waited).
-pub fn answer(planner: &mut decision::Planner, request: &PlanRequest) -> PlanResponse {
-    if let Err(rejected) = request.validate() {
-        return PlanResponse::rejected(request.vehicle_id, request.sequence, rejected, 0);
-    }
-    match planner.decide(&request.to_situation()) {
-        Ok(decision) => PlanResponse::from_decision(request, &decision, 0).unwrap_or_else(|_| internal_error(request)),
-        Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(&e), 0),
-    }
-}
-
-/// The deterministic fallback for `request`, marked `layer`: [`Layer::WatchdogFallback`]
-/// when a deadline runs out or the queue is full, [`Layer::StaleFallback`] for a request
-/// that arrived too old. `queue_us` is 0.
-pub fn fallback_answer(config: &decision::PlannerConfig, request: &PlanRequest, layer: Layer) -> PlanResponse {
-    match decision::fallback_only(config, &request.to_situation()) {
-        Ok(decision) => match Decided::try_from(&decision) {
-            Ok(mut decided) => {
-                decided.set_layer(layer);
-                PlanResponse::decided(request.vehicle_id, request.sequence, decided, 0, 0)
-            }
-            Err(_) => internal_error(request),
-        },
-        Err(e) => PlanResponse::rejected(request.vehicle_id, request.sequence, Rejected::from(&e), 0),
-    }
-}
-
-/// A decision that does not fit the message (cannot happen with a valid configuration).
-fn internal_error(request: &PlanRequest) -> PlanResponse {
-    PlanResponse::rejected(
-        request.vehicle_id,
-        request.sequence,
-        Rejected::new(RejectReason::InternalError, "solver"),
-        0,
-    )
 }

@@ -5,7 +5,9 @@
 //!   iceoryx2 zero-copy payloads, and serde types for bincode and JSON.
 //! * Codecs: [`encode_bincode`] / [`decode_bincode`] with a fixed configuration
 //!   ([`BINCODE_CONFIG`]), [`encode_json`] / [`decode_json`]; errors are [`WireError`].
-//! * [`PlanRequest::validate`]: what the wire alone can check.
+//! * [`PlanRequest::check_wire`]: what the wire alone can check; with the `decision` feature
+//!   [`PlanRequest::validate`] runs every check once and gives a [`ValidRequest`], which
+//!   [`answer`] and [`fallback_answer`] take: the one path from a request to its answer.
 //! * [`staleness`]: when a request is too old to solve; [`signing`]: signed answers.
 //! * [`names`]: iceoryx2 service names, Zenoh key expressions, encodings.
 //! * With the `decision` feature: conversions to and from the decision core's types.
@@ -16,6 +18,8 @@
 // provides; without this line the linker may drop it.
 use iceoryx2_bb_loggers as _;
 
+#[cfg(feature = "decision")]
+mod answer;
 mod codec;
 #[cfg(feature = "decision")]
 mod convert;
@@ -28,12 +32,12 @@ pub mod signing;
 pub mod staleness;
 mod validate;
 
+#[cfg(feature = "decision")]
+pub use answer::{answer, fallback_answer, InvalidRequest, ValidRequest};
 pub use codec::{
     decode_bincode, decode_json, decode_json_str, encode_bincode, encode_json, encode_json_pretty,
     worked_example_request, WireError, WireMessage, BINCODE_CONFIG, MAX_MESSAGE_BYTES,
 };
-#[cfg(feature = "decision")]
-pub use convert::{answer, fallback_answer};
 pub use enums::{Layer, RejectReason};
 pub use format::{layout, WireFormat};
 pub use messages::{

@@ -45,9 +45,11 @@ fn check_memory(memory: &PlannerMemory, prefix: &str) -> Result<(), Rejected> {
 }
 
 impl PlanRequest {
-    /// Checks version, list lengths and the enum-like values (`beta`, previous actions in
-    /// `-1..=1`). The rejection names the field, e.g. `(UnsupportedVersion, "version")`.
-    pub fn validate(&self) -> Result<(), Rejected> {
+    /// The checks the message alone allows: version, list lengths and the enum-like values
+    /// (`beta`, previous actions in `-1..=1`). The rejection names the field, e.g.
+    /// `(UnsupportedVersion, "version")`. A sender can run it before sending; the planner
+    /// runs it first in [`PlanRequest::validate`].
+    pub fn check_wire(&self) -> Result<(), Rejected> {
         if self.version != PROTOCOL_VERSION {
             return Err(Rejected::new(RejectReason::UnsupportedVersion, "version"));
         }

@@ -38,7 +38,7 @@ proptest! {
 
     #[test]
     fn generated_messages_validate(req in request(), resp in response()) {
-        prop_assert_eq!(req.validate(), Ok(()));
+        prop_assert_eq!(req.check_wire(), Ok(()));
         prop_assert_eq!(resp.validate(), Ok(()));
     }
 
@@ -147,7 +147,7 @@ fn wrong_version_is_reported_with_the_carried_version() {
         decode_json_str::<PlanRequest>(r#"{"version": 2, "something": "else"}"#),
         Err(WireError::UnsupportedVersion { found: 2, supported: 3 })
     );
-    let rejected = req.validate().unwrap_err();
+    let rejected = req.check_wire().unwrap_err();
     assert_eq!(rejected.reason(), Ok(RejectReason::UnsupportedVersion));
     assert_eq!(rejected.field(), "version");
 
@@ -300,9 +300,9 @@ fn checked_accessors_reject_unknown_codes() {
 #[test]
 fn validate_checks_what_the_wire_can() {
     let mut req = example_request();
-    assert_eq!(req.validate(), Ok(()));
+    assert_eq!(req.check_wire(), Ok(()));
     req.ego.maneuver.beta = 2;
-    let r = req.validate().unwrap_err();
+    let r = req.check_wire().unwrap_err();
     assert_eq!(
         (r.reason(), r.field()),
         (Ok(RejectReason::BetaOutOfRange), "ego.maneuver.beta")
@@ -310,7 +310,7 @@ fn validate_checks_what_the_wire_can() {
 
     let mut req = example_request();
     req.memory.previous_plan[0].lateral = -2;
-    let r = req.validate().unwrap_err();
+    let r = req.check_wire().unwrap_err();
     assert_eq!(
         (r.reason(), r.field()),
         (Ok(RejectReason::InvalidMemory), "memory.previous_plan")

@@ -112,10 +112,13 @@ fn input_errors_get_distinct_reasons() {
 fn the_planner_rejects_through_the_protocol() {
     let mut req = example_request();
     req.ego.v_mps = -3.0;
-    assert_eq!(req.validate(), Ok(()));
+    assert_eq!(req.check_wire(), Ok(()));
     let mut planner = decision::Planner::new(PlannerConfig::default()).unwrap();
     let err = planner.decide(&req.to_situation()).unwrap_err();
     let resp = PlanResponse::rejected(req.vehicle_id, req.sequence, Rejected::from(&err), 0);
+    // `validate` gives the same rejection, with the request's ids.
+    let invalid = req.clone().validate(&PlannerConfig::default()).unwrap_err();
+    assert_eq!(invalid.response(), resp);
     let decoded: PlanResponse = decode_json_str(&encode_json(&resp)).unwrap();
     let rejected = decoded.outcome.as_rejected().unwrap();
     assert_eq!(rejected.reason(), Ok(RejectReason::NegativeSpeed));
@@ -148,7 +151,8 @@ fn a_decision_travels_and_its_memory_comes_back() {
     next.memory = decided.memory.clone();
     assert_eq!(next.to_situation().memory, decision.memory);
     // The fallback layer maps too.
-    let fallback = decision::fallback_only(&PlannerConfig::default(), &situation).unwrap();
+    let config = PlannerConfig::default();
+    let fallback = decision::fallback_only(&config, &decision::ValidSituation::new(&config, &situation).unwrap());
     let decided = Decided::try_from(&fallback).unwrap();
     assert_eq!(decided.layer(), Ok(Layer::Fallback));
 }
@@ -177,41 +181,60 @@ fn sv_size_zero_means_unknown() {
 
 #[test]
 fn answer_validates_decides_and_echoes() {
-    let mut planner = decision::Planner::new(PlannerConfig::default()).unwrap();
+    let config = PlannerConfig::default();
+    let mut planner = decision::Planner::new(config.clone()).unwrap();
     let req = example_request();
-    let response = answer(&mut planner, &req);
+    let valid = req.clone().validate(&config).expect("a valid request");
+    assert_eq!(valid.request(), &req);
+    let response = answer(&mut planner, &valid);
     assert_eq!((response.vehicle_id, response.sequence), (7, 42));
     let decided = response.outcome.as_decided().expect("a decision");
     let direct = planner.decide(&req.to_situation()).unwrap();
     assert_eq!(decision::Maneuver::from(decided.next_maneuver), direct.next_maneuver);
     assert_eq!(decision::SetPoint::from(decided.setpoint), direct.setpoint);
     // Wire checks first, then the planner's own.
-    let probe = answer(&mut planner, &PlanRequest::probe(9));
-    let rejected = probe.outcome.as_rejected().expect("a rejection");
+    let probe = PlanRequest::probe(9).validate(&config).unwrap_err();
+    assert_eq!((probe.vehicle_id, probe.sequence), (9, 0));
+    assert_eq!(
+        (probe.rejected.reason(), probe.rejected.field()),
+        (Ok(RejectReason::UnsupportedVersion), "version")
+    );
+    let mut both = req.clone();
+    both.ego.maneuver.beta = 3;
+    both.ego.v_mps = -3.0;
+    let rejected = both.validate(&config).unwrap_err().rejected;
     assert_eq!(
         (rejected.reason(), rejected.field()),
-        (Ok(RejectReason::UnsupportedVersion), "version")
+        (Ok(RejectReason::BetaOutOfRange), "ego.maneuver.beta")
     );
     let mut bad = req.clone();
     bad.ego.v_mps = -3.0;
-    let rejected = answer(&mut planner, &bad)
-        .outcome
-        .as_rejected()
-        .cloned()
-        .expect("a rejection");
+    let rejected = bad.validate(&config).unwrap_err().response();
+    let rejected = rejected.outcome.as_rejected().expect("a rejection");
     assert_eq!(
         (rejected.reason(), rejected.field()),
         (Ok(RejectReason::NegativeSpeed), "ego.v_mps")
     );
+    // The configuration bounds the request: a previous plan longer than its horizon.
+    let mut short = config.clone();
+    short.timing.horizon = 2;
+    let mut long_memory = req.clone();
+    long_memory.memory.previous_plan = protocol::bounded("memory.previous_plan", &[Action::default(); 3]).unwrap();
+    assert!(long_memory.clone().validate(&config).is_ok());
+    let rejected = long_memory.validate(&short).unwrap_err().rejected;
+    assert_eq!(
+        (rejected.reason(), rejected.field()),
+        (Ok(RejectReason::InvalidMemory), "memory.previous_plan")
+    );
     // The watchdog's answer is the fallback, marked as the watchdog's, with a set-point.
-    let fallback = fallback_answer(&PlannerConfig::default(), &req, Layer::WatchdogFallback);
+    let fallback = fallback_answer(&config, &valid, Layer::WatchdogFallback);
     let decided = fallback.outcome.as_decided().expect("a decision");
     assert_eq!(decided.layer(), Ok(Layer::WatchdogFallback));
     // A stale request gets the same fallback under its own mark.
-    let stale = fallback_answer(&PlannerConfig::default(), &req, Layer::StaleFallback);
+    let stale = fallback_answer(&config, &valid, Layer::StaleFallback);
     let stale_decided = stale.outcome.as_decided().expect("a decision");
     assert_eq!(stale_decided.layer(), Ok(Layer::StaleFallback));
     assert_eq!(stale_decided.setpoint, decided.setpoint);
-    let core = decision::fallback_only(&PlannerConfig::default(), &req.to_situation()).unwrap();
+    let core = decision::fallback_only(&config, valid.situation());
     assert_eq!(decision::SetPoint::from(decided.setpoint), core.setpoint);
 }

@@ -105,7 +105,7 @@ fn expected_validation(r: &PlanRequest) -> Option<(RejectReason, &'static str)> 
 
 fn assert_validation(r: &PlanRequest) {
     let got = r
-        .validate()
+        .check_wire()
         .err()
         .map(|e| (e.reason().expect("known reason"), e.field().to_owned()));
     let expected = expected_validation(r).map(|(reason, field)| (reason, field.to_owned()));
@@ -241,7 +241,7 @@ proptest! {
 
         let mut req = example_request();
         req.version = version;
-        let rejected = req.validate().unwrap_err();
+        let rejected = req.check_wire().unwrap_err();
         prop_assert_eq!((rejected.reason(), rejected.field()), (Ok(RejectReason::UnsupportedVersion), "version"));
     }
 
@@ -343,7 +343,7 @@ fn corruptions_reach_every_wire_rejection() {
         b[at] = byte;
         let req = decode_bincode::<PlanRequest>(&b).unwrap();
         let got = req
-            .validate()
+            .check_wire()
             .err()
             .map(|r| (r.reason().unwrap(), r.field().to_owned()));
         assert_eq!(

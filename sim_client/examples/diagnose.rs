@@ -77,10 +77,12 @@ fn main() -> anyhow::Result<()> {
             }
             if std::env::var("SHOW_FALLBACK").is_ok() {
                 for r in d.iter().filter(|r| r.layer == Some(protocol::Layer::Fallback)) {
-                    let Some(s) = &r.situation else { continue };
+                    let Some(s) = r.request.as_ref().map(protocol::PlanRequest::to_situation) else {
+                        continue;
+                    };
                     if let Ok(dir) = std::env::var("DUMP_FALLBACK") {
                         let path = format!("{dir}/cfg{}-trial{}-t{:.1}.json", e.id, trial, r.time_s);
-                        std::fs::write(path, serde_json::to_string(s)?)?;
+                        std::fs::write(path, serde_json::to_string(&s)?)?;
                     }
                     let ego = &s.ego;
                     let mut near: Vec<_> = s
@@ -118,7 +120,9 @@ fn main() -> anyhow::Result<()> {
             }
             if std::env::var("SHOW_TRACE").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
                 for r in d {
-                    let Some(s) = &r.situation else { continue };
+                    let Some(s) = r.request.as_ref().map(protocol::PlanRequest::to_situation) else {
+                        continue;
+                    };
                     let ego = &s.ego;
                     let lead = s
                         .svs

@@ -4,13 +4,13 @@
 //! Pure apart from the planner call: no I/O, no clock except the planner's own solve-time
 //! statistic, which is kept apart from everything that must be reproducible.
 
-use decision::{EgoState, Maneuver, PlanStep, PlannerMemory, Situation};
-use protocol::Layer;
+use decision::PlanStep;
+use protocol::{Layer, PlanRequest, WireError};
 use serde::{Deserialize, Serialize};
 use traffic::{EgoCommand, EgoMode, Perception, Scenario, SimParams, World};
 
 use crate::error::{Result, SimClientError};
-use crate::link::PlannerLink;
+use crate::link::{LinkError, PlannerLink};
 use crate::metrics::{clean, EpisodeMetrics};
 use crate::safety::{classify_ego_collision, Body, EgoCollisionKind, SafetyAccumulator, SafetySummary};
 
@@ -86,9 +86,9 @@ pub struct DecisionRecord {
     /// Wall time of the planner's decision (µs); not reproducible, kept out of the CSV.
     #[serde(skip)]
     pub solve_us: u64,
-    /// The situation sent (only with [`EpisodeSpec::record_trajectory`]).
+    /// The request sent, ids and times aside (only with [`EpisodeSpec::record_trajectory`]).
     #[serde(skip)]
-    pub situation: Option<Situation>,
+    pub request: Option<PlanRequest>,
 }
 
 /// A list of ids as one CSV cell: `"2 5"`.
@@ -185,14 +185,15 @@ impl Episode {
     }
 }
 
-/// The planner's view of the perceived scene: road, ego with its last commanded maneuver,
-/// the `max_svs` nearest SVs (sorted by id) and the memory of the last decision.
-pub fn situation_from(
+/// The request body for the perceived scene, as a vehicle sends it: road, ego with its last
+/// commanded maneuver, the `max_svs` nearest SVs (sorted by id) and the memory of the last
+/// answer, handed back as it came. Ids, time and deadline are the link's to fill in.
+pub fn request_from(
     perception: &Perception,
     command: EgoCommand,
     max_svs: usize,
-    memory: PlannerMemory,
-) -> Situation {
+    memory: protocol::PlannerMemory,
+) -> std::result::Result<PlanRequest, WireError> {
     let ego = &perception.ego;
     let mut svs: Vec<&traffic::SvObservation> = perception.svs.iter().collect();
     svs.sort_by(|a, b| {
@@ -202,31 +203,33 @@ pub fn situation_from(
     });
     svs.truncate(max_svs);
     svs.sort_by_key(|s| s.id);
-    Situation {
-        road: decision::Road {
-            lanes: perception.road.lanes,
-            lane_width_m: perception.road.lane_width,
-            speed_limit_mps: perception.road.speed_limit,
+    let svs: Vec<protocol::SvObservation> = svs
+        .into_iter()
+        .map(|s| protocol::SvObservation {
+            vy_mps: s.vy,
+            ..protocol::SvObservation::new(s.id, s.x, s.y, s.v, s.a)
+        })
+        .collect();
+    let road = protocol::Road {
+        lanes: perception.road.lanes,
+        lane_width_m: perception.road.lane_width,
+        speed_limit_mps: perception.road.speed_limit,
+    };
+    let ego = protocol::EgoState {
+        x_m: ego.x,
+        y_m: ego.y,
+        v_mps: ego.v,
+        desired_speed_mps: ego.desired_speed,
+        maneuver: protocol::Maneuver {
+            lane: command.target_lane,
+            beta: command.beta,
         },
-        ego: EgoState {
-            x_m: ego.x,
-            y_m: ego.y,
-            v_mps: ego.v,
-            desired_speed_mps: ego.desired_speed,
-            maneuver: Maneuver {
-                lane: command.target_lane,
-                beta: command.beta,
-            },
-        },
-        svs: svs
-            .into_iter()
-            .map(|s| decision::SvObservation {
-                vy_mps: s.vy,
-                ..decision::SvObservation::new(s.id, s.x, s.y, s.v, s.a)
-            })
-            .collect(),
+    };
+    Ok(PlanRequest {
+        svs: protocol::bounded("svs", &svs)?,
         memory,
-    }
+        ..PlanRequest::new(0, 0, 0, road, ego)
+    })
 }
 
 fn beta_of_acceleration(a: f64) -> i8 {
@@ -311,9 +314,13 @@ pub fn run_episode_observed(
             let index = episode.decisions.len() as u64;
             let record = match &mut driver {
                 Driver::Planner(link) => {
-                    let situation =
-                        situation_from(&perception, world.ego_command(), spec.max_svs, PlannerMemory::default());
-                    let request = crate::link::request_for(&situation, std::mem::take(&mut memory))?;
+                    let request = request_from(
+                        &perception,
+                        world.ego_command(),
+                        spec.max_svs,
+                        std::mem::take(&mut memory),
+                    )
+                    .map_err(LinkError::Encode)?;
                     let decision = link.decide(&request)?;
                     let m = decision.next_maneuver;
                     world.set_ego_command_with_accel(
@@ -333,13 +340,13 @@ pub fn run_episode_observed(
                         beta: m.beta,
                         corrective_svs: decision.corrective_svs,
                         corrective_sv_ids,
-                        svs_sent: situation.svs.len(),
+                        svs_sent: request.svs.len(),
                         ego_x_m: perception.ego.x,
                         ego_y_m: perception.ego.y,
                         ego_speed_mps: perception.ego.v,
                         plan: decision.plan,
                         solve_us: decision.solve_us,
-                        situation: spec.record_trajectory.then_some(situation),
+                        request: spec.record_trajectory.then_some(request),
                     }
                 }
                 Driver::IdmMobil => DecisionRecord {
@@ -356,7 +363,7 @@ pub fn run_episode_observed(
                     ego_speed_mps: perception.ego.v,
                     plan: Vec::new(),
                     solve_us: 0,
-                    situation: None,
+                    request: None,
                 },
             };
             episode.decisions.push(record);

@@ -8,7 +8,7 @@
 
 use std::time::{Duration, Instant};
 
-use decision::{DecisionError, PlannerConfig, Situation};
+use decision::{DecisionError, PlannerConfig};
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, PlannerMemory, RejectReason, SetPoint, WireError};
 use thiserror::Error;
 use transport::inproc::InProcessChannel;
@@ -84,21 +84,20 @@ impl Planned {
         }
     }
 
-    /// The vehicle's own decision for `request` (`decision::fallback_only`), when no answer
-    /// came by the deadline.
+    /// The vehicle's own decision for `request` (the deterministic fallback,
+    /// [`protocol::fallback_answer`]), when no answer came by the deadline. A request that
+    /// fails the planner's checks is [`LinkError::Rejected`].
     pub fn local_fallback(config: &PlannerConfig, request: &PlanRequest) -> Result<Self, LinkError> {
-        let decision = decision::fallback_only(config, &request.to_situation())?;
-        let response = PlanResponse::from_decision(request, &decision, 0).map_err(LinkError::Encode)?;
-        Self::from_response(&response)
+        let valid = request
+            .clone()
+            .validate(config)
+            .map_err(|invalid| LinkError::Rejected {
+                // Built by the checks: always a known reason.
+                reason: invalid.rejected.reason().unwrap_or(RejectReason::InternalError),
+                field: invalid.rejected.field().to_owned(),
+            })?;
+        Self::from_response(&protocol::fallback_answer(config, &valid, Layer::Fallback))
     }
-}
-
-/// The body of a request for `situation` with `memory` (ids, time and deadline are the
-/// link's to fill in).
-pub fn request_for(situation: &Situation, memory: PlannerMemory) -> Result<PlanRequest, LinkError> {
-    let mut request = PlanRequest::from_situation(0, 0, 0, situation).map_err(LinkError::Encode)?;
-    request.memory = memory;
-    Ok(request)
 }
 
 /// A way to ask a planner for a decision. Object safe: the episode loop holds a

@@ -171,7 +171,7 @@ mod tests {
             ego_speed_mps: 10.0,
             plan: Vec::new(),
             solve_us: 100 * (index + 1),
-            situation: None,
+            request: None,
         }
     }
 

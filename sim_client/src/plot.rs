@@ -283,7 +283,7 @@ mod tests {
             ego_speed_mps: 0.0,
             plan: Vec::new(),
             solve_us: 0,
-            situation: None,
+            request: None,
         }
     }
 

@@ -2,7 +2,7 @@
 //! sent (the decision does not carry them). Same code path as the planner: validation, then
 //! the problem preparation with its perception window and scenario trees. Pure.
 
-use decision::{InputError, PlannerConfig, Situation};
+use decision::{InputError, PlannerConfig, Situation, ValidSituation};
 
 /// One step of a predicted branch: the SV moves from `x_from_m` to `x_to_m` in `lane` with
 /// longitudinal mode `beta`.
@@ -38,7 +38,8 @@ pub struct SvPrediction {
 
 /// The branches the planner kept for every SV in its perception window.
 pub fn sv_predictions(config: &PlannerConfig, situation: &Situation) -> Result<Vec<SvPrediction>, InputError> {
-    decision::validate::validate(config, situation)?;
+    let valid = ValidSituation::new(config, situation)?;
+    let situation = valid.get();
     let prepared = decision::problem::prepare(config, situation);
     Ok(prepared
         .problem

@@ -98,9 +98,9 @@ pub fn predictions_at(run: &CaseRun, picks: &[usize], figure: &Path) -> Result<V
     picks
         .iter()
         .map(
-            |&k| match run.episode.decisions.get(k).and_then(|d| d.situation.as_ref()) {
+            |&k| match run.episode.decisions.get(k).and_then(|d| d.request.as_ref()) {
                 None => Ok(Vec::new()),
-                Some(s) => sv_predictions(&run.config, s).map_err(|e| SimClientError::Plot {
+                Some(r) => sv_predictions(&run.config, &r.to_situation()).map_err(|e| SimClientError::Plot {
                     path: figure.display().to_string(),
                     message: format!("predictions at decision {k}: {e}"),
                 }),

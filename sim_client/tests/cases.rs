@@ -151,7 +151,7 @@ fn snapshot_predictions_are_the_planners_scenario_trees() {
     assert_eq!(predictions.len(), picks.len());
     let horizon = run.config.timing.horizon;
     for (k, at) in picks.iter().zip(&predictions) {
-        let sent = run.episode.decisions[*k].situation.as_ref().unwrap();
+        let sent = run.episode.decisions[*k].request.as_ref().unwrap();
         assert!(!at.is_empty(), "no prediction at decision {k}");
         for p in at {
             let sv = sent.svs.iter().find(|s| s.id == p.sv_id).expect("a sent SV");

@@ -168,7 +168,8 @@ struct Fixed {
 
 impl PlannerLink for Fixed {
     fn decide(&mut self, request: &PlanRequest) -> Result<Planned, LinkError> {
-        let mut d = decision::fallback_only(&self.config, &request.to_situation()).unwrap();
+        let valid = decision::ValidSituation::new(&self.config, &request.to_situation()).unwrap();
+        let mut d = decision::fallback_only(&self.config, &valid);
         d.next_maneuver = decision::Maneuver {
             lane: self.lane,
             beta: self.beta,

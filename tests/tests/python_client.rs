@@ -178,7 +178,7 @@ fn oracle(planner: &mut Planner, request: &Value) -> Value {
         }
         Err(e) => panic!("the test sent a request the service cannot decode: {e}"),
     };
-    if let Err(r) = request.validate() {
+    if let Err(r) = request.check_wire() {
         return rejected(r);
     }
     match planner.decide(&request.to_situation()) {

@@ -178,16 +178,19 @@ fn check(request: &PlanRequest, result: &core::result::Result<decision::Decision
 fuzz_target!(|data: &[u8]| {
     let mut u = Unstructured::new(data);
     let Ok(request) = request(&mut u) else { return };
-    if request.validate().is_err() {
+    if request.check_wire().is_err() {
         return;
     }
     let situation = request.to_situation();
     let decided = ENUMERATION.with(|p| p.borrow_mut().decide(&situation));
     check(&request, &decided, false);
-    // The watchdog answers with the fallback alone, for the same requests.
-    let fallback = decision::fallback_only(&PlannerConfig::default(), &situation);
+    // The watchdog answers with the fallback alone, for the requests that pass every check.
+    let config = PlannerConfig::default();
+    let fallback = decision::ValidSituation::new(&config, &situation)
+        .map(|valid| decision::fallback_only(&config, &valid))
+        .map_err(DecisionError::from);
     check(&request, &fallback, false);
-    // Both run the same input checks first.
+    // `validate` runs the same input checks as `decide`.
     assert_eq!(
         decided.as_ref().err().map(Rejected::from),
         fallback.as_ref().err().map(Rejected::from)

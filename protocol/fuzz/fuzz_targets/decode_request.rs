@@ -54,7 +54,7 @@ fn check_bincode(data: &[u8]) {
     assert_eq!(bytes, data, "bincode re-encoding differs");
     let again = decode_bincode::<PlanRequest>(&bytes).expect("re-encoded request decodes");
     assert_eq!(encode_bincode(&again), bytes);
-    if request.validate().is_ok() && all_finite(&request) {
+    if request.check_wire().is_ok() && all_finite(&request) {
         check_json_round_trip(&request);
     }
 }
@@ -65,7 +65,7 @@ fn check_json(data: &[u8]) {
     };
     // JSON cannot carry NaN or infinity, so plain equality holds.
     assert!(all_finite(&request), "JSON decoded a non-finite number");
-    if request.validate().is_ok() {
+    if request.check_wire().is_ok() {
         check_json_round_trip(&request);
         let bytes = encode_bincode(&request);
         assert_eq!(decode_bincode::<PlanRequest>(&bytes).as_ref(), Ok(&request));

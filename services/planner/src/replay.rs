@@ -137,11 +137,13 @@ pub fn replay(config: &PlannerConfig, exchanges: &Exchanges) -> Result<ReplayRep
             report.unanswered += 1;
             continue;
         };
-        let replayed = if let Some(layer) = service_fallback(recorded) {
-            report.watchdog_answers += 1;
-            protocol::fallback_answer(config, request, layer)
-        } else {
-            protocol::answer(&mut planner, request)
+        let replayed = match (request.clone().validate(config), service_fallback(recorded)) {
+            (Err(invalid), _) => invalid.response(),
+            (Ok(valid), Some(layer)) => {
+                report.watchdog_answers += 1;
+                protocol::fallback_answer(config, &valid, layer)
+            }
+            (Ok(valid), None) => protocol::answer(&mut planner, &valid),
         };
         report.compared += 1;
         let fields = differing_fields(recorded, &replayed);

@@ -22,7 +22,10 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use decision::{InterruptHandle, Planner, PlannerConfig};
-use protocol::{unix_now_ns, Layer, PlanRequest, PlanResponse, ResponseSigner, WireFormat, DEFAULT_DEADLINE};
+use protocol::{
+    unix_now_ns, InvalidRequest, Layer, PlanRequest, PlanResponse, ResponseSigner, ValidRequest, WireFormat,
+    DEFAULT_DEADLINE,
+};
 
 use crate::fair_queue::{FairQueue, RateLimit, RateLimiter};
 
@@ -114,7 +117,7 @@ fn micros(d: Duration) -> u32 {
 
 /// What the worker, the watchdog and the submitter share about one request.
 struct JobState {
-    request: PlanRequest,
+    request: ValidRequest,
     arrival: Instant,
     deadline: Instant,
     /// The deadline as a duration (what staleness is measured against).
@@ -130,6 +133,56 @@ struct JobState {
 impl JobState {
     fn take_reply(&self) -> Option<Reply> {
         self.reply.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
+
+    fn vehicle_id(&self) -> u64 {
+        self.request.request().vehicle_id
+    }
+
+    fn sequence(&self) -> u64 {
+        self.request.request().sequence
+    }
+
+    /// Older than its deadline by its send time, now.
+    fn is_stale(&self, tolerance: Duration) -> bool {
+        self.request
+            .request()
+            .is_stale_at(unix_now_ns(), self.allowed, tolerance)
+    }
+
+    /// Answers with the fallback marked `layer`, if nobody answered yet, computed now; see
+    /// [`JobState::answer_fallback_with`].
+    fn answer_fallback(
+        &self,
+        config: &PlannerConfig,
+        stats: &Stats,
+        layer: Layer,
+        count: Option<fn(&mut Counters)>,
+    ) -> bool {
+        self.answer_fallback_with(stats, || protocol::fallback_answer(config, &self.request, layer), count)
+    }
+
+    /// Answers with the fallback `fallback` gives (computed only if the job is still
+    /// unanswered: the watchdog may hold one computed ahead), its queue time set now,
+    /// counted with `count` before it leaves (a client that reads the statistics once it
+    /// has its answer finds it counted); whether it was this answer.
+    fn answer_fallback_with(
+        &self,
+        stats: &Stats,
+        fallback: impl FnOnce() -> PlanResponse,
+        count: Option<fn(&mut Counters)>,
+    ) -> bool {
+        let Some(reply) = self.take_reply() else {
+            return false;
+        };
+        let mut response = fallback();
+        response.queue_us = micros(self.arrival.elapsed());
+        stats.record_answer(&response, self.arrival);
+        if let Some(count) = count {
+            count(&mut stats.lock().counters);
+        }
+        reply(response);
+        true
     }
 
     /// Someone (a worker, the watchdog, the stale path) has answered.
@@ -275,10 +328,22 @@ impl Service {
             Ok(request) => self.submit(request, arrival, reply),
             Err((rejected, (vehicle_id, sequence), e)) => {
                 tracing::debug!(error = %e, "undecodable request");
-                let response = PlanResponse::rejected(vehicle_id, sequence, rejected, micros(arrival.elapsed()));
-                self.answer_now(response, arrival, bytes.is_empty(), self.signed(reply));
+                let invalid = InvalidRequest {
+                    vehicle_id,
+                    sequence,
+                    rejected,
+                };
+                self.refuse(invalid, arrival, bytes.is_empty(), reply);
             }
         }
+    }
+
+    /// Answers a request a front end could not turn into a [`PlanRequest`] with its
+    /// rejection, at once (`probe`: a readiness probe, not counted as a rejection).
+    pub fn refuse(&self, invalid: InvalidRequest, arrival: Instant, probe: bool, reply: Reply) {
+        let mut response = invalid.response();
+        response.queue_us = micros(arrival.elapsed());
+        self.answer_now(response, arrival, probe, self.signed(reply));
     }
 
     /// `reply`, signing the response first when the service has a key.
@@ -297,24 +362,24 @@ impl Service {
 
     /// Submits a decoded request. The reply is called exactly once.
     pub fn submit(&self, request: PlanRequest, arrival: Instant, reply: Reply) {
+        let probe = request.is_probe();
         let reply: Reply = match &self.config.recorder {
-            Some(recorder) if !request.is_probe() => Box::new(recorder.wrap_reply(&request, arrival, reply)),
+            Some(recorder) if !probe => Box::new(recorder.wrap_reply(&request, arrival, reply)),
             _ => reply,
         };
         // Signed before it is recorded: the recording holds what was sent.
         let reply = self.signed(reply);
-        // Wire-level checks the decoder does not make (enum ranges, ...); a probe fails them.
-        if let Err(rejected) = request.validate() {
-            let response = PlanResponse::rejected(
-                request.vehicle_id,
-                request.sequence,
-                rejected,
-                micros(arrival.elapsed()),
-            );
-            self.answer_now(response, arrival, request.is_probe(), reply);
-            return;
-        }
-        let allowed = request.deadline().min(self.config.max_deadline);
+        // Every check, once; a probe fails the first (its version).
+        let request = match request.validate(&self.planner_config) {
+            Ok(request) => request,
+            Err(invalid) => {
+                let mut response = invalid.response();
+                response.queue_us = micros(arrival.elapsed());
+                self.answer_now(response, arrival, probe, reply);
+                return;
+            }
+        };
+        let allowed = request.request().deadline().min(self.config.max_deadline);
         let job = Arc::new(JobState {
             request,
             arrival,
@@ -325,27 +390,24 @@ impl Service {
             solving: Mutex::new(None),
         });
         // Before the rate limit and the queue: an old scene costs neither a solve nor a place.
-        if job
-            .request
-            .is_stale_at(unix_now_ns(), allowed, self.config.clock_skew_tolerance)
-        {
+        if job.is_stale(self.config.clock_skew_tolerance) {
             tracing::debug!(
-                vehicle = job.request.vehicle_id,
-                sequence = job.request.sequence,
+                vehicle = job.vehicle_id(),
+                sequence = job.sequence(),
                 "stale on arrival"
             );
-            answer_fallback(&self.planner_config, &job, &self.stats, Layer::StaleFallback);
+            job.answer_fallback(&self.planner_config, &self.stats, Layer::StaleFallback, None);
             return;
         }
-        let vehicle = job.request.vehicle_id;
+        let vehicle = job.vehicle_id();
         if let Some(limiter) = &self.limiter {
             if !limiter
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .allow(vehicle, arrival)
             {
-                self.stats.lock().counters.rate_limited += 1;
-                answer_fallback(&self.planner_config, &job, &self.stats, Layer::WatchdogFallback);
+                let count: fn(&mut Counters) = |c| c.rate_limited += 1;
+                job.answer_fallback(&self.planner_config, &self.stats, Layer::WatchdogFallback, Some(count));
                 return;
             }
         }
@@ -361,9 +423,9 @@ impl Service {
             }
             self.queue.ready.notify_one();
         } else {
-            self.stats.lock().counters.overloaded += 1;
             job.abandoned.store(true, Ordering::SeqCst);
-            answer_fallback(&self.planner_config, &job, &self.stats, Layer::WatchdogFallback);
+            let count: fn(&mut Counters) = |c| c.overloaded += 1;
+            job.answer_fallback(&self.planner_config, &self.stats, Layer::WatchdogFallback, Some(count));
         }
     }
 
@@ -393,50 +455,6 @@ impl Drop for Service {
     fn drop(&mut self) {
         self.shutdown();
     }
-}
-
-/// Answers `job` with the fallback marked `layer`, if nobody answered yet.
-fn answer_fallback(config: &PlannerConfig, job: &JobState, stats: &Stats, layer: Layer) -> bool {
-    answer_fallback_counted(config, job, stats, layer, None)
-}
-
-/// [`answer_fallback`], with `count` applied to the counters before the answer leaves: a
-/// client that reads the statistics once it has its answer finds it counted.
-fn answer_fallback_counted(
-    config: &PlannerConfig,
-    job: &JobState,
-    stats: &Stats,
-    layer: Layer,
-    count: Option<fn(&mut Counters)>,
-) -> bool {
-    send_fallback(
-        job,
-        stats,
-        || protocol::fallback_answer(config, &job.request, layer),
-        count,
-    )
-}
-
-/// Answers `job` with the fallback `fallback` gives (computed only if the job is still
-/// unanswered), its queue time set now, counted with `count` before it leaves; whether it
-/// was this answer.
-fn send_fallback(
-    job: &JobState,
-    stats: &Stats,
-    fallback: impl FnOnce() -> PlanResponse,
-    count: Option<fn(&mut Counters)>,
-) -> bool {
-    let Some(reply) = job.take_reply() else {
-        return false;
-    };
-    let mut response = fallback();
-    response.queue_us = micros(job.arrival.elapsed());
-    stats.record_answer(&response, job.arrival);
-    if let Some(count) = count {
-        count(&mut stats.lock().counters);
-    }
-    reply(response);
-    true
 }
 
 /// `(inject_delay, clock_skew_tolerance)`: see [`ServiceConfig`].
@@ -471,14 +489,9 @@ fn worker(
             continue;
         }
         // The request may have become stale while it waited in the queue.
-        if job.request.is_stale_at(unix_now_ns(), job.allowed, tolerance) {
-            answer_fallback_counted(
-                config,
-                &job,
-                stats,
-                Layer::StaleFallback,
-                Some(|c| c.stale_in_queue += 1),
-            );
+        if job.is_stale(tolerance) {
+            let count: fn(&mut Counters) = |c| c.stale_in_queue += 1;
+            job.answer_fallback(config, stats, Layer::StaleFallback, Some(count));
             continue;
         }
         let started = Instant::now();

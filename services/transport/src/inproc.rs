@@ -1,5 +1,6 @@
 //! Requests answered by a planner in this thread, through the same path as the service
-//! ([`protocol::answer`]): the baseline a transport's share is measured against.
+//! ([`PlanRequest::validate`], then [`protocol::answer`]): the baseline a transport's share
+//! is measured against.
 
 use std::time::{Duration, Instant};
 
@@ -28,7 +29,10 @@ impl InProcessChannel {
 
     /// The answer to `request`, at once.
     pub fn answer(&mut self, request: &PlanRequest) -> protocol::PlanResponse {
-        protocol::answer(&mut self.planner, request)
+        match request.clone().validate(self.planner.config()) {
+            Ok(valid) => protocol::answer(&mut self.planner, &valid),
+            Err(invalid) => invalid.response(),
+        }
     }
 
     /// The planner's configuration.

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use decision::PlannerConfig;
 use protocol::{Layer, PlanResponse};
 
-use super::{send_fallback, JobState, Stats};
+use super::{JobState, Stats};
 
 /// How long the watchdog sleeps with nothing to wait for (it also logs the statistics).
 const IDLE: Duration = Duration::from_secs(1);
@@ -210,12 +210,12 @@ fn expire(config: &PlannerConfig, w: Waiting, stats: &Stats) {
     let prepared = w.fallback;
     let fallback =
         || prepared.unwrap_or_else(|| protocol::fallback_answer(config, &job.request, Layer::WatchdogFallback));
-    if !send_fallback(job, stats, fallback, None) {
+    if !job.answer_fallback_with(stats, fallback, None) {
         return;
     }
     tracing::debug!(
-        vehicle = job.request.vehicle_id,
-        sequence = job.request.sequence,
+        vehicle = job.vehicle_id(),
+        sequence = job.sequence(),
         "deadline ran out: watchdog fallback"
     );
 }
