@@ -6,7 +6,7 @@ use std::time::Duration;
 use decision::PlannerConfig;
 use protocol::ResponseVerifier;
 use transport::iceoryx2::{ClientOptions, Iceoryx2Channel, WaitMode};
-use transport::inproc::InProcessChannel;
+use crate::inproc::InProcessChannel;
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 use transport::PlanChannel;
 

@@ -16,6 +16,7 @@ pub mod cases;
 pub mod connect;
 pub mod episode;
 pub mod error;
+mod inproc;
 pub mod link;
 pub mod load;
 pub mod log_replay;

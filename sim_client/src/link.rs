@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use decision::{DecisionError, PlannerConfig};
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, PlannerMemory, RejectReason, SetPoint, WireError};
 use thiserror::Error;
-use transport::inproc::InProcessChannel;
+use crate::inproc::InProcessChannel;
 use transport::{Answer, ChannelError, PlanChannel};
 
 pub use crate::connect::Transport;

@@ -96,7 +96,7 @@ struct Common {
 
 impl Common {
     fn planner_config(&self) -> Result<decision::PlannerConfig> {
-        Ok(supervise::planner_config(self.planner_config.as_deref())?)
+        Ok(planner_service::config_file::planner_config(self.planner_config.as_deref())?)
     }
 
     /// The planner's public key, when given.
