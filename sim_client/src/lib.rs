@@ -30,6 +30,7 @@ pub mod presets;
 pub mod record;
 pub mod recorded;
 pub mod report;
+mod ros2_channel;
 pub mod safety;
 pub mod scene;
 

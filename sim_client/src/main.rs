@@ -38,6 +38,8 @@ enum TransportKind {
     Iceoryx2,
     /// A `planner serve` process reached with `--zenoh-connect` or `--zenoh-config`.
     Zenoh,
+    /// A `planner serve --ros2` node on the ROS 2 domain `ROS_DOMAIN_ID` names (docs/ros2.md).
+    Ros2,
 }
 
 #[derive(Args)]
@@ -74,8 +76,8 @@ struct Common {
     #[arg(long)]
     busy_poll: bool,
     /// Start `planner serve` (found next to this executable) for the run and stop it at exit
-    /// (with `--transport zenoh` on a free loopback port, or `--transport iceoryx2` under a
-    /// prefix of its own).
+    /// (with `--transport zenoh` on a free loopback port, `--transport iceoryx2` under a
+    /// prefix of its own, `--transport ros2` as a node on this process's ROS 2 domain).
     #[arg(long)]
     spawn_planner: bool,
     /// Where a planner started with `--spawn-planner` writes its log (default: this stderr).
@@ -96,7 +98,9 @@ struct Common {
 
 impl Common {
     fn planner_config(&self) -> Result<decision::PlannerConfig> {
-        Ok(planner_service::config_file::planner_config(self.planner_config.as_deref())?)
+        Ok(planner_service::config_file::planner_config(
+            self.planner_config.as_deref(),
+        )?)
     }
 
     /// The planner's public key, when given.
@@ -172,6 +176,17 @@ impl Common {
                     }
                 };
                 Ok((Transport::Zenoh(target), planner))
+            }
+            TransportKind::Ros2 => {
+                if zenoh_flags || self.iceoryx2_prefix.is_some() || self.busy_poll {
+                    anyhow::bail!("--zenoh-*, --iceoryx2-prefix and --busy-poll do not apply to --transport ros2");
+                }
+                let planner = if self.spawn_planner {
+                    Some(spawn(Serve::Ros2)?)
+                } else {
+                    None
+                };
+                Ok((Transport::Ros2 { verifier }, planner))
             }
             TransportKind::Iceoryx2 => {
                 if zenoh_flags {
@@ -273,7 +288,7 @@ fn print_files(files: &[PathBuf]) {
 }
 
 fn main() -> Result<()> {
-    supervise::init_process("warn");
+    supervise::init_process(&format!("warn,{}", hmdp_ros2::QUIET_LOG_DIRECTIVES));
     let cli = Cli::parse();
     let started = Instant::now();
     let mut exit_code = None;

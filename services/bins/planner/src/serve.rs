@@ -7,6 +7,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use hmdp_ros2::MarkersFor;
 use planner_service::config_file::ServiceSection;
 use planner_service::{RateLimit, Service, ServiceConfig, Stats, QUEUE_PER_WORKER};
 use protocol::ResponseSigner;
@@ -22,6 +23,19 @@ pub struct ServeArgs {
     /// Serve over iceoryx2 shared memory (request-response `hmdp/planner/plan`).
     #[arg(long)]
     iceoryx2: bool,
+    /// Serve as a ROS 2 node (`hmdp_planner`: service `/hmdp/plan`, topics `/hmdp/decisions`
+    /// and `/hmdp/plan_markers`) on the domain `ROS_DOMAIN_ID` names (default 0); discovery
+    /// follows `ROS_AUTOMATIC_DISCOVERY_RANGE`. See docs/ros2.md.
+    #[arg(long)]
+    ros2: bool,
+    /// The ROS 2 node's name.
+    #[arg(long, value_name = "NAME", default_value = hmdp_ros2::DEFAULT_SERVER_NODE, requires = "ros2")]
+    ros2_node: String,
+    /// Whose answers get RViz markers on `/hmdp/plan_markers`: `all`, `none`, or one vehicle
+    /// id (with several vehicles each array replaces the last). Built only while a marker
+    /// subscriber is discovered.
+    #[arg(long, value_name = "all|none|ID", default_value = "all", value_parser = parse_markers, requires = "ros2")]
+    ros2_markers: MarkersFor,
     /// iceoryx2 shared-memory file prefix; clients must use the same (default: iceoryx2's).
     #[arg(long, value_name = "PREFIX", requires = "iceoryx2")]
     iceoryx2_prefix: Option<String>,
@@ -100,6 +114,18 @@ pub struct ServeArgs {
     inject_solve_delay_ms: u64,
 }
 
+/// `--ros2-markers`: `all`, `none` or a vehicle id.
+fn parse_markers(text: &str) -> Result<MarkersFor, String> {
+    match text {
+        "all" => Ok(MarkersFor::Everyone),
+        "none" => Ok(MarkersFor::Nobody),
+        id => id
+            .parse()
+            .map(MarkersFor::Vehicle)
+            .map_err(|_| format!("`{id}` is not all, none or a vehicle id")),
+    }
+}
+
 /// The service core's settings from the command line and the `[service]` table.
 fn service_config(args: &ServeArgs, file: &ServiceSection) -> Result<ServiceConfig> {
     let mut config = ServiceConfig::default();
@@ -175,9 +201,14 @@ async fn run_until_stopped(
 ) -> Result<()> {
     let (shutdown_tx, shutdown_rx) = oneshot::channel::<()>();
     let mut zenoh_task = zenoh_config.map(|(cfg, instance)| {
-        tokio::spawn(planner_service::zenoh_front::serve(service, cfg, instance, async move {
-            let _ = shutdown_rx.await;
-        }))
+        tokio::spawn(planner_service::zenoh_front::serve(
+            service,
+            cfg,
+            instance,
+            async move {
+                let _ = shutdown_rx.await;
+            },
+        ))
     });
     let iceoryx2_ended = async {
         match iceoryx2_done {
@@ -215,9 +246,9 @@ async fn run_until_stopped(
 
 pub fn run(args: ServeArgs) -> Result<()> {
     let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
-    if !zenoh_wanted && !args.iceoryx2 {
+    if !zenoh_wanted && !args.iceoryx2 && !args.ros2 {
         anyhow::bail!(
-            "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
+            "give --iceoryx2, --ros2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
         );
     }
     let (planner_config, service_file) = planner_service::config_file::planner_files(args.config.as_deref())?;
@@ -279,7 +310,22 @@ pub fn run(args: ServeArgs) -> Result<()> {
     } else {
         (None, None)
     };
+    let ros2 = if args.ros2 {
+        let options = hmdp_ros2::ServerOptions {
+            node: hmdp_ros2::NodeConfig::named(args.ros2_node.clone()),
+            markers: args.ros2_markers,
+            ..Default::default()
+        };
+        let server = planner_service::ros2_front::serve(Arc::clone(&service), options).context("ROS 2 front end")?;
+        tracing::info!(node = %args.ros2_node, service = hmdp_ros2::SERVICE_NAME, "planner serving over ROS 2");
+        Some(server)
+    } else {
+        None
+    };
     let result = runtime.block_on(run_until_stopped(Arc::clone(&service), zenoh_config, iceoryx2_done));
+    if let Some(server) = ros2 {
+        server.stop();
+    }
     stop_iceoryx2.store(true, Ordering::Relaxed);
     if let Some(t) = iceoryx2_thread {
         let _ = t.join();
@@ -328,4 +374,3 @@ fn record_stats(recorder: PlanRecorder, stats: Arc<Stats>) -> (Arc<AtomicBool>, 
     });
     (stop, thread)
 }
-

@@ -45,9 +45,7 @@ pub async fn serve(
     instance: String,
     shutdown: impl std::future::Future<Output = ()>,
 ) -> Result<(), ZenohFrontError> {
-    let session = zenoh::open(config)
-        .await
-        .map_err(failed("opening the zenoh session"))?;
+    let session = zenoh::open(config).await.map_err(failed("opening the zenoh session"))?;
     let (reply_tx, mut reply_rx) = mpsc::unbounded_channel::<(Query, Vec<u8>, WireFormat)>();
     let own_key = instance_plan_key(&instance);
     let mut queryables = Vec::new();
@@ -82,7 +80,10 @@ pub async fn serve(
         .liveliness()
         .declare_token(alive_key(&instance))
         .await
-        .map_err(failed(format!("declaring the liveliness token {}", alive_key(&instance))))?;
+        .map_err(failed(format!(
+            "declaring the liveliness token {}",
+            alive_key(&instance)
+        )))?;
     let responder = tokio::spawn(async move {
         while let Some((query, body, format)) = reply_rx.recv().await {
             let key = query.key_expr().clone();

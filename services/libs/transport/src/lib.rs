@@ -44,6 +44,14 @@ pub enum ChannelError {
         #[source]
         source: crate::zenoh::Cause,
     },
+    /// A channel defined outside this crate failed (the simulator's ROS 2 channel).
+    #[error("{transport}")]
+    Other {
+        /// The transport's name.
+        transport: &'static str,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The planner did not answer the readiness probe in time.
     #[error("the planner {at} does not answer")]
     NotReady {
