@@ -51,6 +51,10 @@ pub struct EpisodeSpec {
     /// Record every vehicle's state after every low-level step, and the situation sent at
     /// every decision (for the figures).
     pub record_trajectory: bool,
+    /// Classify every nominal decision against the plain MPC of this configuration (the
+    /// driver's): no violation allowance, band slack within `d_HS`
+    /// ([`decision::classify_nominal`]), so that the nominal share compares with the paper's.
+    pub audit_nominal: Option<decision::PlannerConfig>,
 }
 
 /// One decision instant.
@@ -89,6 +93,9 @@ pub struct DecisionRecord {
     /// The request sent, ids and times aside (only with [`EpisodeSpec::record_trajectory`]).
     #[serde(skip)]
     pub request: Option<PlanRequest>,
+    /// A nominal decision against the plain MPC (only with [`EpisodeSpec::audit_nominal`]).
+    #[serde(skip)]
+    pub nominal_class: Option<decision::NominalClass>,
 }
 
 /// A list of ids as one CSV cell: `"2 5"`.
@@ -232,6 +239,18 @@ pub fn request_from(
     })
 }
 
+/// [`decision::classify_nominal`] of a nominal answer to `request`.
+fn classify(
+    config: &decision::PlannerConfig,
+    request: &PlanRequest,
+    planned: &crate::link::Planned,
+) -> Result<decision::NominalClass> {
+    let situation = decision::ValidSituation::new(config, &request.to_situation())
+        .map_err(|e| SimClientError::Config(format!("auditing a nominal decision: {e}")))?;
+    let plan: Vec<decision::Action> = planned.plan.iter().map(|s| s.action).collect();
+    Ok(decision::classify_nominal(config, &situation, &plan))
+}
+
 fn beta_of_acceleration(a: f64) -> i8 {
     if a > IDM_BETA_DEAD_BAND_MPS2 {
         1
@@ -331,6 +350,12 @@ pub fn run_episode_observed(
                         decision.setpoint.accel_mps2,
                     )?;
                     let corrective_sv_ids = decision.memory.corrective.iter().map(|c| c.sv_id).collect();
+                    let nominal_class = match &spec.audit_nominal {
+                        Some(config) if decision.layer == Layer::Nominal => {
+                            Some(classify(config, &request, &decision)?)
+                        }
+                        _ => None,
+                    };
                     memory = decision.memory;
                     DecisionRecord {
                         index,
@@ -347,6 +372,7 @@ pub fn run_episode_observed(
                         plan: decision.plan,
                         solve_us: decision.solve_us,
                         request: spec.record_trajectory.then_some(request),
+                        nominal_class,
                     }
                 }
                 Driver::IdmMobil => DecisionRecord {
@@ -364,6 +390,7 @@ pub fn run_episode_observed(
                     plan: Vec::new(),
                     solve_us: 0,
                     request: None,
+                    nominal_class: None,
                 },
             };
             episode.decisions.push(record);
