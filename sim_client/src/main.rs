@@ -111,7 +111,7 @@ impl Common {
         self.planner_public_key
             .as_deref()
             .map(|hex| {
-                protocol::signing::parse_hex(hex)
+                protocol::parse_hex(hex)
                     .and_then(|bytes| ResponseVerifier::from_bytes(&bytes))
                     .ok_or_else(|| anyhow::anyhow!("--planner-public-key is not an Ed25519 public key"))
             })

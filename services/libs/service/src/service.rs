@@ -13,7 +13,7 @@
 //!   permitted and computes the fallback ahead of the deadline (`service/watchdog.rs`).
 //! * A request already older than its deadline by its `sent_at_ns`, on arrival or when a
 //!   worker takes it, gets the fallback marked [`protocol::Layer::StaleFallback`], unsolved.
-//! * With a signing key every answer is signed on its way out ([`protocol::signing`]).
+//! * With a signing key every answer is signed on its way out ([`protocol::ResponseSigner`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
