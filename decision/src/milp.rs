@@ -545,3 +545,6 @@ pub use backend::{LayerOutcome, MilpBackend};
 #[cfg(test)]
 #[path = "milp_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+mod fingerprint_tests;

@@ -35,6 +35,19 @@ pub fn best(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) ->
 
 /// The LP as HiGHS gets it: one column per acceleration, price and slack, every row.
 pub fn by_highs(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> Option<Optimum> {
+    let (m, u) = highs_model(problem, r, rows, mode);
+    let result = with_thread_lp(|solver| solver.solve(&m, None)).expect("HiGHS LP of the exact evaluation");
+    match (result.status, result.columns) {
+        (MipStatus::Optimal, Some(cols)) => Some(Optimum {
+            accel: u.iter().map(|&c| cols[c]).collect(),
+            objective: result.objective,
+        }),
+        _ => None,
+    }
+}
+
+/// The LP HiGHS gets, with the columns of the accelerations.
+pub(crate) fn highs_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (MipModel, Vec<usize>) {
     let kin = &problem.kin;
     let w = &problem.weights;
     let (h_len, dt, v0) = (problem.horizon, kin.dt, problem.ego.v);
@@ -80,14 +93,7 @@ pub fn by_highs(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode
         }
         m.add_row(row.rhs, f64::INFINITY, &mut terms);
     }
-    let result = with_thread_lp(|solver| solver.solve(&m, None)).expect("HiGHS LP of the exact evaluation");
-    match (result.status, result.columns) {
-        (MipStatus::Optimal, Some(cols)) => Some(Optimum {
-            accel: u.iter().map(|&c| cols[c]).collect(),
-            objective: result.objective,
-        }),
-        _ => None,
-    }
+    (m, u)
 }
 
 /// A safety row kept for the dense LP.
@@ -105,6 +111,18 @@ pub fn by_dense(
     rows: &[Requirement],
     mode: Mode,
 ) -> Result<Option<Optimum>, SmallLpError> {
+    let (lp, u) = dense_model(problem, r, rows, mode);
+    Ok(match lp.solve()? {
+        LpOutcome::Optimal { x, objective } => Some(Optimum {
+            accel: u.iter().map(|&c| x[c]).collect(),
+            objective,
+        }),
+        LpOutcome::Infeasible => None,
+    })
+}
+
+/// The reduced LP the dense simplex gets, with the columns of the accelerations.
+pub(crate) fn dense_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (SmallLp, Vec<usize>) {
     let kin = &problem.kin;
     let w = &problem.weights;
     let (h_len, dt, v0) = (problem.horizon, kin.dt, problem.ego.v);
@@ -187,13 +205,7 @@ pub fn by_dense(
         terms.extend(k.hysteresis.iter().chain(&k.global).map(|&col| (col, 1.0)));
         lp.add_row(k.rhs, f64::INFINITY, &terms);
     }
-    Ok(match lp.solve()? {
-        LpOutcome::Optimal { x, objective } => Some(Optimum {
-            accel: u.iter().map(|&c| x[c]).collect(),
-            objective,
-        }),
-        LpOutcome::Infeasible => None,
-    })
+    (lp, u)
 }
 
 #[cfg(test)]
