@@ -21,6 +21,7 @@ pub mod highs_solver;
 pub mod hysteresis;
 pub mod idm;
 pub mod lanes;
+pub mod lp;
 pub mod milp;
 pub mod model;
 pub mod planner;

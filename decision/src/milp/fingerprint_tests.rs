@@ -107,11 +107,12 @@ fn dense(p: &mut Print, lp: &SmallLp) {
 /// The columns a decoded solution is read from.
 fn decoded_columns(p: &mut Print, cols: &Columns) {
     p.line("decode");
+    let act = &cols.act;
     for s in 0..cols.accel.len() {
-        for &a in &cols.act[s] {
-            p.int("act ", a);
+        for a in [act.lane_left[s], act.lane_right[s], act.beta_down[s], act.beta_up[s]] {
+            p.int("act ", a.index());
         }
-        p.int("u ", cols.accel[s]);
+        p.int("u ", cols.accel[s].index());
     }
 }
 

@@ -1,0 +1,241 @@
+//! The LP once: linear expressions over typed columns, the acceleration LP described one
+//! time ([`accel`]), and the two sinks that lay a model out for its solver: [`HighsSink`]
+//! (a [`MipModel`](crate::highs_solver::MipModel), for the MILP and the exact evaluation's
+//! reference LP) and [`DenseSink`] (the dense simplex, with its exact reductions).
+//!
+//! Rows read as the formulation writes them:
+//!
+//! ```ignore
+//! b.at_least(dev + v - v_des, 0.0);                 // dev >= v_des - v
+//! b.row(-v0..=cap - v0, dt * u.iter().sum::<Expr>());
+//! ```
+//!
+//! An [`Expr`] keeps its terms in the order they were written and its constant apart; a
+//! row's bounds are its bounds minus the constant. The order matters: a column repeated in
+//! a row is summed in it, and HiGHS and the dense simplex choose among tied optima by the
+//! order of columns and rows, so the sinks emit exactly what the builders used to
+//! (`milp::fingerprint_tests`).
+
+use std::ops::{Add, AddAssign, Mul, Neg, RangeInclusive, Sub};
+
+pub mod accel;
+mod dense_sink;
+mod highs_sink;
+
+pub use dense_sink::DenseSink;
+pub use highs_sink::{HighsSink, PriceCols};
+
+/// A column of a model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Col(usize);
+
+impl Col {
+    pub fn new(index: usize) -> Self {
+        Self(index)
+    }
+
+    /// Its position among the model's columns (its entry in a solution).
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
+/// `sum coef * column + constant`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Expr {
+    terms: Vec<(Col, f64)>,
+    constant: f64,
+}
+
+impl Expr {
+    pub fn constant(value: f64) -> Self {
+        Self {
+            terms: Vec::new(),
+            constant: value,
+        }
+    }
+
+    pub fn terms(&self) -> &[(Col, f64)] {
+        &self.terms
+    }
+
+    pub fn constant_part(&self) -> f64 {
+        self.constant
+    }
+
+    /// The terms without the constant.
+    pub fn linear(&self) -> Expr {
+        Expr {
+            terms: self.terms.clone(),
+            constant: 0.0,
+        }
+    }
+
+    /// `(smallest, largest)` of the terms (without the constant) over column boxes, summed
+    /// term by term in order.
+    pub fn range(&self, bounds: impl Fn(Col) -> (f64, f64)) -> (f64, f64) {
+        self.terms.iter().fold((0.0, 0.0), |(lo, hi), &(c, k)| {
+            let (l, h) = bounds(c);
+            let (a, b) = (k * l, k * h);
+            (lo + a.min(b), hi + a.max(b))
+        })
+    }
+}
+
+impl From<Col> for Expr {
+    fn from(c: Col) -> Self {
+        Expr {
+            terms: vec![(c, 1.0)],
+            constant: 0.0,
+        }
+    }
+}
+
+impl From<f64> for Expr {
+    fn from(value: f64) -> Self {
+        Expr::constant(value)
+    }
+}
+
+impl<T: Into<Expr>> AddAssign<T> for Expr {
+    fn add_assign(&mut self, other: T) {
+        let other = other.into();
+        self.terms.extend_from_slice(&other.terms);
+        self.constant += other.constant;
+    }
+}
+
+impl<T: Into<Expr>> Add<T> for Expr {
+    type Output = Expr;
+    fn add(mut self, other: T) -> Expr {
+        self += other;
+        self
+    }
+}
+
+impl<T: Into<Expr>> Sub<T> for Expr {
+    type Output = Expr;
+    fn sub(self, other: T) -> Expr {
+        self + -other.into()
+    }
+}
+
+impl<T: Into<Expr>> Add<T> for Col {
+    type Output = Expr;
+    fn add(self, other: T) -> Expr {
+        Expr::from(self) + other
+    }
+}
+
+impl<T: Into<Expr>> Sub<T> for Col {
+    type Output = Expr;
+    fn sub(self, other: T) -> Expr {
+        Expr::from(self) - other
+    }
+}
+
+impl Neg for Expr {
+    type Output = Expr;
+    fn neg(mut self) -> Expr {
+        for t in &mut self.terms {
+            t.1 = -t.1;
+        }
+        self.constant = -self.constant;
+        self
+    }
+}
+
+impl Neg for Col {
+    type Output = Expr;
+    fn neg(self) -> Expr {
+        -Expr::from(self)
+    }
+}
+
+impl Mul<f64> for Expr {
+    type Output = Expr;
+    fn mul(mut self, k: f64) -> Expr {
+        for t in &mut self.terms {
+            t.1 *= k;
+        }
+        self.constant *= k;
+        self
+    }
+}
+
+impl Mul<Expr> for f64 {
+    type Output = Expr;
+    fn mul(self, e: Expr) -> Expr {
+        e * self
+    }
+}
+
+impl Mul<f64> for Col {
+    type Output = Expr;
+    fn mul(self, k: f64) -> Expr {
+        Expr {
+            terms: vec![(self, k)],
+            constant: 0.0,
+        }
+    }
+}
+
+impl Mul<Col> for f64 {
+    type Output = Expr;
+    fn mul(self, c: Col) -> Expr {
+        c * self
+    }
+}
+
+impl<T: Into<Expr>> std::iter::Sum<T> for Expr {
+    fn sum<I: Iterator<Item = T>>(iter: I) -> Expr {
+        iter.fold(Expr::default(), |sum, e| sum + e)
+    }
+}
+
+/// Where a builder's columns and rows go.
+pub trait Sink {
+    /// A continuous column.
+    fn col(&mut self, cost: f64, lower: f64, upper: f64) -> Col;
+
+    /// `lower <= expr <= upper`, the constant moved to the bounds.
+    fn add_row(&mut self, lower: f64, expr: Expr, upper: f64);
+
+    /// `bounds.start() <= expr <= bounds.end()`.
+    fn row(&mut self, bounds: RangeInclusive<f64>, expr: Expr) {
+        let (lower, upper) = bounds.into_inner();
+        self.add_row(lower, expr, upper);
+    }
+
+    /// `expr >= lower`.
+    fn at_least(&mut self, expr: Expr, lower: f64) {
+        self.add_row(lower, expr, f64::INFINITY);
+    }
+
+    /// `expr <= upper`.
+    fn at_most(&mut self, expr: Expr, upper: f64) {
+        self.add_row(f64::NEG_INFINITY, expr, upper);
+    }
+
+    /// `expr = value`.
+    fn equal(&mut self, expr: Expr, value: f64) {
+        self.add_row(value, expr, value);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn expressions_keep_their_terms_in_order_and_their_constant_apart() {
+        let (x, y) = (Col::new(0), Col::new(1));
+        let e = 2.0 * x + (y - 1.5) - (x * 0.5 + 3.0);
+        assert_eq!(e.terms(), &[(x, 2.0), (y, 1.0), (x, -0.5)]);
+        assert_eq!(e.constant_part(), -4.5);
+        let s: Expr = [x, y, x].into_iter().sum();
+        assert_eq!(s.terms(), &[(x, 1.0), (y, 1.0), (x, 1.0)]);
+        assert_eq!((-s).terms()[1], (y, -1.0));
+        assert_eq!(e.range(|_| (-1.0, 2.0)), (-4.0, 6.5));
+    }
+}
