@@ -27,7 +27,6 @@ pub mod model;
 pub mod planner;
 pub mod problem;
 pub mod scenario;
-pub mod small_lp;
 pub mod types;
 pub mod validate;
 

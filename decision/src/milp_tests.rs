@@ -273,14 +273,12 @@ fn dense_relaxations_agree_with_highs() {
 /// objective (relative 1e-7) at a point within the boxes and rows, or infeasible for both.
 fn dense_relaxation_agrees_with_highs(model: &MipModel) {
     let lp = branch::dense_relaxation(model);
-    let dense = lp
-        .solve_with(crate::small_lp::Pricing::SteepestEdge)
-        .expect("dense simplex");
+    let dense = lp.solve_with(dense_lp::Pricing::SteepestEdge).expect("dense simplex");
     let mut relaxed = model.clone();
     relaxed.integer.iter_mut().for_each(|i| *i = false);
     let highs = crate::highs_solver::with_thread_lp(|s| s.solve(&relaxed, None)).unwrap();
     match (dense, highs.status) {
-        (crate::small_lp::LpOutcome::Optimal { x, objective }, MipStatus::Optimal) => {
+        (dense_lp::LpOutcome::Optimal { x, objective }, MipStatus::Optimal) => {
             let h = highs.objective;
             assert!(
                 (objective - h).abs() <= 1e-7 * (1.0 + h.abs()),
@@ -295,7 +293,7 @@ fn dense_relaxation_agrees_with_highs(model: &MipModel) {
                 assert!(a >= lo - 1e-9 && a <= hi + 1e-9, "row {r}: {a} outside [{lo}, {hi}]");
             }
         }
-        (crate::small_lp::LpOutcome::Infeasible, MipStatus::Infeasible) => {}
+        (dense_lp::LpOutcome::Infeasible, MipStatus::Infeasible) => {}
         (d, h) => panic!("dense {d:?} vs HiGHS {h:?}"),
     }
 }

@@ -15,7 +15,7 @@ use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
 use crate::lp::{accel, DenseSink, HighsSink};
 use crate::model::Rollout;
 use crate::problem::Problem;
-use crate::small_lp::{LpOutcome, SmallLp, SmallLpError};
+use dense_lp::{DenseLp, LpOutcome};
 
 /// The accelerations of an optimum and the LP's objective there (without the sequence's
 /// fixed prices).
@@ -60,7 +60,7 @@ pub fn by_dense(
     r: &Rollout,
     rows: &[Requirement],
     mode: Mode,
-) -> Result<Option<Optimum>, SmallLpError> {
+) -> Result<Option<Optimum>, dense_lp::Error> {
     let (lp, u) = dense_model(problem, r, rows, mode);
     Ok(match lp.solve()? {
         LpOutcome::Optimal { x, objective } => Some(Optimum {
@@ -72,7 +72,7 @@ pub fn by_dense(
 }
 
 /// The reduced LP the dense simplex gets, with the columns of the accelerations.
-pub(crate) fn dense_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (SmallLp, Vec<usize>) {
+pub(crate) fn dense_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (DenseLp, Vec<usize>) {
     let mut sink = DenseSink::default();
     let u = accel::describe(problem, r, rows, mode, &mut sink);
     (sink.finish(), u.iter().map(|c| c.index()).collect())

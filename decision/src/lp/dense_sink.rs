@@ -6,12 +6,12 @@
 
 use super::accel::{AccelSink, Price, Step};
 use super::{Col, Expr, Sink};
-use crate::small_lp::SmallLp;
+use dense_lp::DenseLp;
 
-/// Builds a [`SmallLp`].
+/// Builds a [`DenseLp`].
 #[derive(Debug, Default)]
 pub struct DenseSink {
-    lp: SmallLp,
+    lp: DenseLp,
     /// The safety rows kept so far, `terms >= demand`; written at [`DenseSink::finish`].
     safety: Vec<(Expr, f64)>,
     terms: Vec<(usize, f64)>,
@@ -44,7 +44,7 @@ impl DenseSink {
     }
 
     /// The LP, the safety rows last.
-    pub fn finish(mut self) -> SmallLp {
+    pub fn finish(mut self) -> DenseLp {
         for (row, demand) in std::mem::take(&mut self.safety) {
             self.at_least(row, demand);
         }

@@ -12,7 +12,6 @@ use crate::evaluate::accel_lp::{dense_model, highs_model};
 use crate::evaluate::requirements;
 use crate::model::rollout;
 use crate::problem::prepare;
-use crate::small_lp::SmallLp;
 use crate::PlannerConfig;
 use std::fmt::Write as _;
 
@@ -81,7 +80,7 @@ fn mip(p: &mut Print, m: &MipModel) {
     }
 }
 
-fn dense(p: &mut Print, lp: &SmallLp) {
+fn dense(p: &mut Print, lp: &dense_lp::DenseLp) {
     p.line("dense");
     p.num("offset ", lp.objective_constant());
     for c in 0..lp.num_cols() {
