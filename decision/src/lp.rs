@@ -16,7 +16,7 @@
 //! order of columns and rows, so the sinks emit exactly what the builders used to
 //! (`milp::fingerprint_tests`).
 
-use std::ops::{Add, AddAssign, Mul, Neg, RangeInclusive, Sub};
+use std::ops::{Add, AddAssign, Mul, Neg, RangeInclusive, Sub, SubAssign};
 
 pub mod accel;
 mod dense_sink;
@@ -82,12 +82,64 @@ impl Expr {
     }
 }
 
+/// `coef * col`: what `col * coef` gives, a term that an expression takes in without an
+/// allocation of its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Term {
+    pub col: Col,
+    pub coef: f64,
+}
+
+/// What an expression takes in by `+` and `-`: a column, a term, a constant, an expression.
+pub trait Linear {
+    /// Add `self` (`negate`: `-self`) to `e`: its terms after `e`'s, its constant to `e`'s.
+    fn add_to(self, e: &mut Expr, negate: bool);
+}
+
+/// `x` or `-x` (negation is exact).
+fn signed(x: f64, negate: bool) -> f64 {
+    if negate {
+        -x
+    } else {
+        x
+    }
+}
+
+impl Linear for Col {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        Term { col: self, coef: 1.0 }.add_to(e, negate);
+    }
+}
+
+impl Linear for Term {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        e.terms.push((self.col, signed(self.coef, negate)));
+        e.constant += signed(0.0, negate);
+    }
+}
+
+impl Linear for f64 {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        e.constant += signed(self, negate);
+    }
+}
+
+impl Linear for Expr {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        e.terms.extend(self.terms.iter().map(|&(c, k)| (c, signed(k, negate))));
+        e.constant += signed(self.constant, negate);
+    }
+}
+
 impl From<Col> for Expr {
     fn from(c: Col) -> Self {
-        Expr {
-            terms: vec![(c, 1.0)],
-            constant: 0.0,
-        }
+        Expr::default() + c
+    }
+}
+
+impl From<Term> for Expr {
+    fn from(t: Term) -> Self {
+        Expr::default() + t
     }
 }
 
@@ -97,15 +149,19 @@ impl From<f64> for Expr {
     }
 }
 
-impl<T: Into<Expr>> AddAssign<T> for Expr {
+impl<T: Linear> AddAssign<T> for Expr {
     fn add_assign(&mut self, other: T) {
-        let other = other.into();
-        self.terms.extend_from_slice(&other.terms);
-        self.constant += other.constant;
+        other.add_to(self, false);
     }
 }
 
-impl<T: Into<Expr>> Add<T> for Expr {
+impl<T: Linear> SubAssign<T> for Expr {
+    fn sub_assign(&mut self, other: T) {
+        other.add_to(self, true);
+    }
+}
+
+impl<T: Linear> Add<T> for Expr {
     type Output = Expr;
     fn add(mut self, other: T) -> Expr {
         self += other;
@@ -113,21 +169,36 @@ impl<T: Into<Expr>> Add<T> for Expr {
     }
 }
 
-impl<T: Into<Expr>> Sub<T> for Expr {
+impl<T: Linear> Sub<T> for Expr {
     type Output = Expr;
-    fn sub(self, other: T) -> Expr {
-        self + -other.into()
+    fn sub(mut self, other: T) -> Expr {
+        self -= other;
+        self
     }
 }
 
-impl<T: Into<Expr>> Add<T> for Col {
+impl<T: Linear> Add<T> for Col {
     type Output = Expr;
     fn add(self, other: T) -> Expr {
         Expr::from(self) + other
     }
 }
 
-impl<T: Into<Expr>> Sub<T> for Col {
+impl<T: Linear> Sub<T> for Col {
+    type Output = Expr;
+    fn sub(self, other: T) -> Expr {
+        Expr::from(self) - other
+    }
+}
+
+impl<T: Linear> Add<T> for Term {
+    type Output = Expr;
+    fn add(self, other: T) -> Expr {
+        Expr::from(self) + other
+    }
+}
+
+impl<T: Linear> Sub<T> for Term {
     type Output = Expr;
     fn sub(self, other: T) -> Expr {
         Expr::from(self) - other
@@ -146,9 +217,19 @@ impl Neg for Expr {
 }
 
 impl Neg for Col {
-    type Output = Expr;
-    fn neg(self) -> Expr {
-        -Expr::from(self)
+    type Output = Term;
+    fn neg(self) -> Term {
+        Term { col: self, coef: -1.0 }
+    }
+}
+
+impl Neg for Term {
+    type Output = Term;
+    fn neg(self) -> Term {
+        Term {
+            col: self.col,
+            coef: -self.coef,
+        }
     }
 }
 
@@ -171,25 +252,31 @@ impl Mul<Expr> for f64 {
 }
 
 impl Mul<f64> for Col {
-    type Output = Expr;
-    fn mul(self, k: f64) -> Expr {
-        Expr {
-            terms: vec![(self, k)],
-            constant: 0.0,
-        }
+    type Output = Term;
+    fn mul(self, coef: f64) -> Term {
+        Term { col: self, coef }
     }
 }
 
 impl Mul<Col> for f64 {
-    type Output = Expr;
-    fn mul(self, c: Col) -> Expr {
+    type Output = Term;
+    fn mul(self, c: Col) -> Term {
         c * self
     }
 }
 
-impl<T: Into<Expr>> std::iter::Sum<T> for Expr {
+/// A sum of columns, terms or expressions, in order (one allocation for a sized iterator of
+/// terms).
+impl<T: Linear> std::iter::Sum<T> for Expr {
     fn sum<I: Iterator<Item = T>>(iter: I) -> Expr {
-        iter.fold(Expr::default(), |sum, e| sum + e)
+        let mut e = Expr {
+            terms: Vec::with_capacity(iter.size_hint().0),
+            constant: 0.0,
+        };
+        for x in iter {
+            e += x;
+        }
+        e
     }
 }
 
@@ -236,6 +323,9 @@ mod tests {
         let s: Expr = [x, y, x].into_iter().sum();
         assert_eq!(s.terms(), &[(x, 1.0), (y, 1.0), (x, 1.0)]);
         assert_eq!((-s).terms()[1], (y, -1.0));
+        let t: Expr = (0..3).map(|k| x * f64::from(k)).sum();
+        assert_eq!(t.terms(), &[(x, 0.0), (x, 1.0), (x, 2.0)]);
+        assert_eq!((y - -x).terms(), &[(y, 1.0), (x, 1.0)]);
         assert_eq!(e.range(|_| (-1.0, 2.0)), (-4.0, 6.5));
     }
 }

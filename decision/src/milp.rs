@@ -209,8 +209,9 @@ impl<'p> Builder<'p> {
     /// Flow rows from `prev` to `now` with the `(down, up)` flows equal to the action columns.
     fn flow_rows(&mut self, chain: Chain, step: usize, prev: &[OneHot], now: &[Col], (down, up): (Col, Col)) {
         let n = now.len();
-        let mut into: Vec<Expr> = now.iter().map(|&c| c * -1.0).collect();
-        let (mut down_flow, mut up_flow) = (down * -1.0, up * -1.0);
+        // Rows `sum_i x[i -> j] - now[j] = 0`, `sum x[i -> j < i] - down = 0`, ...
+        let mut into: Vec<Expr> = now.iter().map(|&c| Expr::from(-c)).collect();
+        let (mut down_flow, mut up_flow) = (Expr::from(-down), Expr::from(-up));
         for (i, from) in prev.iter().enumerate() {
             if matches!(from, OneHot::Fixed(false)) {
                 continue; // no flow leaves a state the ego is not in
@@ -235,7 +236,7 @@ impl<'p> Builder<'p> {
                 }
             }
             match *from {
-                OneHot::Column(c) => self.b.equal(out + c * -1.0, 0.0),
+                OneHot::Column(c) => self.b.equal(out - c, 0.0),
                 _ => self.b.equal(out, 1.0),
             }
         }
@@ -269,7 +270,7 @@ impl<'p> Builder<'p> {
             let seen = self.b.col(0.0, 0.0, 1.0);
             self.cols.seen.push((l, seen));
             for s in 0..p.horizon {
-                self.b.at_least(seen + self.cols.lane[s][l] * -1.0, 0.0);
+                self.b.at_least(seen - self.cols.lane[s][l], 0.0);
             }
             seen_any += seen;
         }
@@ -281,14 +282,10 @@ impl<'p> Builder<'p> {
         let kin = self.problem.kin;
         for s in 0..self.problem.horizon {
             let (u, beta) = (self.cols.accel[s], self.cols.beta[s]);
-            let (mut lower, mut upper) = (Expr::from(u), Expr::from(u));
-            for (j, &b) in beta.iter().enumerate() {
-                let (lo, hi) = kin.bounds[j];
-                lower += b * -lo;
-                upper += b * -hi;
-            }
-            self.b.at_least(lower, 0.0);
-            self.b.at_most(upper, 0.0);
+            let lo: Expr = beta.iter().zip(&kin.bounds).map(|(&b, &(lo, _))| b * lo).sum();
+            let hi: Expr = beta.iter().zip(&kin.bounds).map(|(&b, &(_, hi))| b * hi).sum();
+            self.b.at_least(u - lo, 0.0);
+            self.b.at_most(u - hi, 0.0);
         }
     }
 
@@ -398,7 +395,7 @@ impl<'p> Builder<'p> {
             for l in 0..self.problem.lanes as usize {
                 if let Some(o) = self.cols.occ[s][l] {
                     for j in 0..=s {
-                        self.b.at_least(o + self.cols.lane[j][l] * -1.0, 0.0);
+                        self.b.at_least(o - self.cols.lane[j][l], 0.0);
                     }
                 }
             }

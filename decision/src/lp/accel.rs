@@ -97,7 +97,7 @@ impl Step {
         let brake = |weight: f64, base: f64| Price {
             weight,
             base,
-            terms: u[h] * -1.0,
+            terms: Expr::from(-u[h]),
         };
         Step {
             deviation: AbsPrice {
