@@ -63,22 +63,31 @@ impl Expr {
         self.constant
     }
 
-    /// The terms without the constant.
-    pub fn linear(&self) -> Expr {
-        Expr {
-            terms: self.terms.clone(),
+    /// `(smallest, largest)` of the terms (without the constant) over column boxes, summed
+    /// term by term in order.
+    pub fn range(&self, bounds: impl Fn(Col) -> (f64, f64)) -> (f64, f64) {
+        range(self.terms.iter().copied(), bounds)
+    }
+
+    /// An empty expression with room for `terms` terms.
+    pub fn with_capacity(terms: usize) -> Self {
+        Self {
+            terms: Vec::with_capacity(terms),
             constant: 0.0,
         }
     }
 
-    /// `(smallest, largest)` of the terms (without the constant) over column boxes, summed
-    /// term by term in order.
-    pub fn range(&self, bounds: impl Fn(Col) -> (f64, f64)) -> (f64, f64) {
-        self.terms.iter().fold((0.0, 0.0), |(lo, hi), &(c, k)| {
-            let (l, h) = bounds(c);
-            let (a, b) = (k * l, k * h);
-            (lo + a.min(b), hi + a.max(b))
-        })
+    /// Empty it, keeping its buffer.
+    pub fn clear(&mut self) {
+        self.terms.clear();
+        self.constant = 0.0;
+    }
+
+    /// Add terms, in order.
+    pub fn extend(&mut self, terms: impl IntoIterator<Item = Term>) {
+        for t in terms {
+            *self += t;
+        }
     }
 }
 
@@ -88,6 +97,59 @@ impl Expr {
 pub struct Term {
     pub col: Col,
     pub coef: f64,
+}
+
+/// `coef * (cols[0] + cols[1] + ...)`, borrowed: the acceleration LP's speeds and prices are
+/// such sums over the accelerations so far, and a sink that reduces them needs no vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scaled<'a> {
+    pub cols: &'a [Col],
+    pub coef: f64,
+}
+
+impl Scaled<'_> {
+    pub fn terms(&self) -> impl Iterator<Item = (Col, f64)> + '_ {
+        self.cols.iter().map(|&c| (c, self.coef))
+    }
+
+    /// `(smallest, largest)` over column boxes, summed term by term in order (as
+    /// [`Expr::range`]).
+    pub fn range(&self, bounds: impl Fn(Col) -> (f64, f64)) -> (f64, f64) {
+        range(self.terms(), bounds)
+    }
+}
+
+impl Neg for Scaled<'_> {
+    type Output = Self;
+    fn neg(self) -> Self {
+        Scaled {
+            cols: self.cols,
+            coef: -self.coef,
+        }
+    }
+}
+
+impl Linear for Scaled<'_> {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        let coef = signed(self.coef, negate);
+        e.terms.extend(self.cols.iter().map(|&c| (c, coef)));
+        e.constant += signed(0.0, negate);
+    }
+}
+
+impl From<Scaled<'_>> for Expr {
+    fn from(s: Scaled<'_>) -> Self {
+        Expr::default() + s
+    }
+}
+
+/// `(smallest, largest)` of `sum k x_c` over the boxes `bounds(c)`, summed term by term.
+fn range(terms: impl Iterator<Item = (Col, f64)>, bounds: impl Fn(Col) -> (f64, f64)) -> (f64, f64) {
+    terms.fold((0.0, 0.0), |(lo, hi), (c, k)| {
+        let (l, h) = bounds(c);
+        let (a, b) = (k * l, k * h);
+        (lo + a.min(b), hi + a.max(b))
+    })
 }
 
 /// What an expression takes in by `+` and `-`: a column, a term, a constant, an expression.
@@ -125,6 +187,12 @@ impl Linear for f64 {
 }
 
 impl Linear for Expr {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        (&self).add_to(e, negate);
+    }
+}
+
+impl Linear for &Expr {
     fn add_to(self, e: &mut Expr, negate: bool) {
         e.terms.extend(self.terms.iter().map(|&(c, k)| (c, signed(k, negate))));
         e.constant += signed(self.constant, negate);

@@ -298,7 +298,7 @@ impl<'p> Builder<'p> {
             let step = Step::at(p, &self.cols.accel, s);
             let steps = (s + 1) as f64 * p.kin.dt;
             if step.limit.may_bind(steps * u_min, steps * u_max) {
-                self.b.row(step.limit.bounds(), step.limit.change.clone());
+                self.b.row(step.limit.bounds(), Expr::from(step.limit.change));
             }
             self.b.price_rows(&step, &self.cols.prices[s]);
         }

@@ -81,6 +81,7 @@ pub struct DenseLp {
 }
 
 impl DenseLp {
+    #[inline]
     pub fn add_col(&mut self, cost: f64, lower: f64, upper: f64) -> usize {
         self.cost.push(cost);
         self.lower.push(lower);
@@ -89,16 +90,19 @@ impl DenseLp {
     }
 
     /// Add `cost` to the objective coefficient of `col`.
+    #[inline]
     pub fn add_cost(&mut self, col: usize, cost: f64) {
         self.cost[col] += cost;
     }
 
     /// Add a constant to the objective.
+    #[inline]
     pub fn add_constant(&mut self, value: f64) {
         self.offset += value;
     }
 
     /// Add `lower <= sum(coef * col) <= upper`; repeated columns add up.
+    #[inline]
     pub fn add_row(&mut self, lower: f64, upper: f64, terms: &[(usize, f64)]) {
         self.row_start.push(self.terms.len());
         self.terms.extend_from_slice(terms);
@@ -106,46 +110,56 @@ impl DenseLp {
         self.row_upper.push(upper);
     }
 
+    #[inline]
     pub fn num_cols(&self) -> usize {
         self.cost.len()
     }
 
+    #[inline]
     pub fn num_rows(&self) -> usize {
         self.row_lower.len()
     }
 
+    #[inline]
     pub fn cost(&self, col: usize) -> f64 {
         self.cost[col]
     }
 
+    #[inline]
     pub fn bounds(&self, col: usize) -> (f64, f64) {
         (self.lower[col], self.upper[col])
     }
 
+    #[inline]
     pub fn row_bounds(&self, row: usize) -> (f64, f64) {
         (self.row_lower[row], self.row_upper[row])
     }
 
+    #[inline]
     pub fn row_terms(&self, row: usize) -> &[(usize, f64)] {
         let end = self.row_start.get(row + 1).copied().unwrap_or(self.terms.len());
         &self.terms[self.row_start[row]..end]
     }
 
+    #[inline]
     pub fn objective_constant(&self) -> f64 {
         self.offset
     }
 
     /// `A x` of one row.
+    #[inline]
     pub fn activity(&self, row: usize, x: &[f64]) -> f64 {
         self.row_terms(row).iter().map(|&(c, a)| a * x[c]).sum()
     }
 
     /// The objective at `x`.
+    #[inline]
     pub fn objective(&self, x: &[f64]) -> f64 {
         self.offset + self.cost.iter().zip(x).map(|(c, x)| c * x).sum::<f64>()
     }
 
     /// Replace the box of `col`.
+    #[inline]
     pub fn set_bounds(&mut self, col: usize, lower: f64, upper: f64) {
         self.lower[col] = lower;
         self.upper[col] = upper;

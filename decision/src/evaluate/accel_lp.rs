@@ -12,7 +12,7 @@
 use super::{Mode, Requirement};
 use crate::config::LpSolver;
 use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
-use crate::lp::{accel, DenseSink, HighsSink};
+use crate::lp::{accel, Col, DenseSink, HighsSink};
 use crate::model::Rollout;
 use crate::problem::Problem;
 use dense_lp::{DenseLp, LpOutcome};
@@ -40,7 +40,7 @@ pub fn by_highs(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode
     let result = with_thread_lp(|solver| solver.solve(&m, None)).expect("HiGHS LP of the exact evaluation");
     match (result.status, result.columns) {
         (MipStatus::Optimal, Some(cols)) => Some(Optimum {
-            accel: u.iter().map(|&c| cols[c]).collect(),
+            accel: u.iter().map(|c| cols[c.index()]).collect(),
             objective: result.objective,
         }),
         _ => None,
@@ -48,10 +48,10 @@ pub fn by_highs(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode
 }
 
 /// The LP HiGHS gets, with the columns of the accelerations.
-pub(crate) fn highs_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (MipModel, Vec<usize>) {
+pub(crate) fn highs_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (MipModel, Vec<Col>) {
     let mut sink = HighsSink::default();
     let u = accel::describe(problem, r, rows, mode, &mut sink);
-    (sink.into_model(), u.iter().map(|c| c.index()).collect())
+    (sink.into_model(), u)
 }
 
 /// The reduced LP solved by the dense simplex; `Err` when it gives no verdict.
@@ -64,7 +64,7 @@ pub fn by_dense(
     let (lp, u) = dense_model(problem, r, rows, mode);
     Ok(match lp.solve()? {
         LpOutcome::Optimal { x, objective } => Some(Optimum {
-            accel: u.iter().map(|&c| x[c]).collect(),
+            accel: u.iter().map(|c| x[c.index()]).collect(),
             objective,
         }),
         LpOutcome::Infeasible => None,
@@ -72,10 +72,10 @@ pub fn by_dense(
 }
 
 /// The reduced LP the dense simplex gets, with the columns of the accelerations.
-pub(crate) fn dense_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (DenseLp, Vec<usize>) {
+pub(crate) fn dense_model(problem: &Problem, r: &Rollout, rows: &[Requirement], mode: Mode) -> (DenseLp, Vec<Col>) {
     let mut sink = DenseSink::default();
     let u = accel::describe(problem, r, rows, mode, &mut sink);
-    (sink.finish(), u.iter().map(|c| c.index()).collect())
+    (sink.finish(), u)
 }
 
 #[cfg(test)]

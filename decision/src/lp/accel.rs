@@ -12,57 +12,56 @@
 
 use std::ops::{Index, IndexMut, RangeInclusive};
 
-use super::{Col, Expr, Sink};
+use super::{Col, Expr, Linear, Scaled, Sink};
 use crate::evaluate::{Mode, Requirement};
 use crate::model::Rollout;
 use crate::problem::Problem;
 
 /// `weight * max(0, base + terms)`.
-#[derive(Debug, Clone)]
-pub struct Price {
+#[derive(Debug, Clone, Copy)]
+pub struct Price<'a> {
     pub weight: f64,
     pub base: f64,
-    /// The argument's linear part (no constant).
-    pub terms: Expr,
+    pub terms: Scaled<'a>,
 }
 
-/// `weight * |value - target|`.
-#[derive(Debug, Clone)]
-pub struct AbsPrice {
+/// `weight * |value + offset - target|`.
+#[derive(Debug, Clone, Copy)]
+pub struct AbsPrice<'a> {
     pub weight: f64,
-    pub value: Expr,
+    pub value: Scaled<'a>,
+    pub offset: f64,
     pub target: f64,
 }
 
-impl AbsPrice {
-    /// The two halves `max(0, value - target)` and `max(0, target - value)`, in that order.
-    pub fn halves(&self) -> [Price; 2] {
-        let c = self.value.constant_part();
-        let linear = self.value.linear();
+impl<'a> AbsPrice<'a> {
+    /// The two halves `max(0, value + offset - target)` and `max(0, target - offset - value)`,
+    /// in that order.
+    pub fn halves(&self) -> [Price<'a>; 2] {
         [
             Price {
                 weight: self.weight,
-                base: c - self.target,
-                terms: linear.clone(),
+                base: self.offset - self.target,
+                terms: self.value,
             },
             Price {
                 weight: self.weight,
-                base: self.target - c,
-                terms: -linear,
+                base: self.target - self.offset,
+                terms: -self.value,
             },
         ]
     }
 }
 
 /// `0 <= v0 + change <= cap`, a row on `change` within `[-v0, cap - v0]`.
-#[derive(Debug, Clone)]
-pub struct SpeedLimit {
-    pub change: Expr,
+#[derive(Debug, Clone, Copy)]
+pub struct SpeedLimit<'a> {
+    pub change: Scaled<'a>,
     pub v0: f64,
     pub cap: f64,
 }
 
-impl SpeedLimit {
+impl SpeedLimit<'_> {
     /// Whether the row can bind when `change` ranges over `[lo, hi]`.
     pub fn may_bind(&self, lo: f64, hi: f64) -> bool {
         self.v0 + lo < 0.0 || self.v0 + hi > self.cap
@@ -74,21 +73,25 @@ impl SpeedLimit {
 }
 
 /// What step `h` charges and bounds.
-#[derive(Debug, Clone)]
-pub struct Step {
-    pub limit: SpeedLimit,
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'a> {
+    pub limit: SpeedLimit<'a>,
     /// `|v_h - v_des|`.
-    pub deviation: AbsPrice,
+    pub deviation: AbsPrice<'a>,
     /// Braking beyond zero, beyond `comfort_decel`, beyond `firm_decel`.
-    pub brakes: [Price; 3],
+    pub brakes: [Price<'a>; 3],
 }
 
-impl Step {
+impl<'a> Step<'a> {
     /// Step `h` over the accelerations `u` (`u[..=h]` must exist).
-    pub fn at(problem: &Problem, u: &[Col], h: usize) -> Self {
+    pub fn at(problem: &Problem, u: &'a [Col], h: usize) -> Self {
         let w = &problem.weights;
         let (dt, v0) = (problem.kin.dt, problem.ego.v);
-        let change: Expr = u[..=h].iter().map(|&c| c * dt).sum();
+        // v_h - v0 = dt sum_{j <= h} u_j.
+        let change = Scaled {
+            cols: &u[..=h],
+            coef: dt,
+        };
         let terminal = if h + 1 == problem.horizon {
             w.w_speed_terminal
         } else {
@@ -97,16 +100,16 @@ impl Step {
         let brake = |weight: f64, base: f64| Price {
             weight,
             base,
-            terms: Expr::from(-u[h]),
+            terms: Scaled {
+                cols: &u[h..=h],
+                coef: -1.0,
+            },
         };
         Step {
             deviation: AbsPrice {
                 weight: w.w_speed + terminal,
-                // The constant exactly `v0` (`0.0 + v0` would turn a `-0.0` into `0.0`).
-                value: Expr {
-                    constant: v0,
-                    ..change.clone()
-                },
+                value: change,
+                offset: v0,
                 target: problem.desired_speed,
             },
             limit: SpeedLimit {
@@ -195,23 +198,37 @@ impl Slacks {
     }
 
     /// The slacks a safety row of `cell` may use (a band row: the hysteresis slack too).
-    pub fn of(&mut self, sink: &mut impl Sink, problem: &Problem, cell: Cell, band: bool) -> Expr {
+    pub fn of(&mut self, sink: &mut impl Sink, problem: &Problem, cell: Cell, band: bool) -> RowSlacks {
         let (w, c) = (&problem.weights, &problem.svs[cell.sv]);
-        let mut slack = Expr::default();
-        if band {
-            slack += *self.hysteresis[cell].get_or_insert_with(|| sink.col(w.w_slack, 0.0, c.slack_bound()));
+        RowSlacks {
+            hysteresis: band
+                .then(|| *self.hysteresis[cell].get_or_insert_with(|| sink.col(w.w_slack, 0.0, c.slack_bound()))),
+            global: self
+                .relaxed
+                .then(|| *self.global[cell].get_or_insert_with(|| sink.col(w.w_global, 0.0, c.relax_bound))),
         }
-        if self.relaxed {
-            slack += *self.global[cell].get_or_insert_with(|| sink.col(w.w_global, 0.0, c.relax_bound));
-        }
-        slack
+    }
+}
+
+/// The slack columns of one safety row, added to it by `+` (hysteresis first).
+#[derive(Debug, Clone, Copy)]
+pub struct RowSlacks {
+    pub hysteresis: Option<Col>,
+    pub global: Option<Col>,
+}
+
+impl Linear for RowSlacks {
+    fn add_to(self, e: &mut Expr, negate: bool) {
+        let cols = self.hysteresis.into_iter().chain(self.global);
+        e.extend(cols.map(|c| if negate { -c } else { c * 1.0 }));
+        e.constant += if negate { -0.0 } else { 0.0 };
     }
 }
 
 /// How a solver's model takes the acceleration LP's terms.
 pub trait AccelSink: Sink {
     /// Step `h`'s speed limit and prices.
-    fn step(&mut self, step: Step);
+    fn step(&mut self, step: Step<'_>);
 
     /// Whether the safety row `gap >= demand` is kept (before its slacks are made).
     fn keeps(&self, gap: &Expr, demand: f64) -> bool;
@@ -241,15 +258,20 @@ pub fn describe(
         sink.step(Step::at(problem, &u, h));
     }
     let mut slacks = Slacks::new(problem, mode);
+    // One buffer for the rows' gaps: most rows are dropped by a sink that reduces.
+    let mut gap = Expr::default();
     for row in rows {
-        let gap: Expr = row.coef.iter().zip(&u).map(|(&k, &c)| c * k).sum();
+        gap.clear();
+        gap.extend(row.coef.iter().zip(&u).map(|(&k, &c)| c * k));
         if sink.keeps(&gap, row.rhs) {
             let cell = Cell {
                 sv: row.sv,
                 step: row.step,
             };
-            let slack = slacks.of(sink, problem, cell, row.band);
-            sink.safety_row(gap + slack, row.rhs);
+            let mut full = Expr::with_capacity(gap.terms().len() + 2);
+            full += &gap;
+            full += slacks.of(sink, problem, cell, row.band);
+            sink.safety_row(full, row.rhs);
         }
     }
     u

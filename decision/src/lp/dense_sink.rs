@@ -24,7 +24,7 @@ impl DenseSink {
 
     /// `price` as the objective takes it over the boxes: nothing where its argument is never
     /// positive, linear where it never is negative, else a column `t >= argument`.
-    fn price(&mut self, price: Price) {
+    fn price(&mut self, price: Price<'_>) {
         if price.weight == 0.0 {
             return;
         }
@@ -34,13 +34,16 @@ impl DenseSink {
         }
         if price.base + lo >= 0.0 {
             self.lp.add_constant(price.weight * price.base);
-            for &(c, k) in price.terms.terms() {
+            for (c, k) in price.terms.terms() {
                 self.lp.add_cost(c.0, price.weight * k);
             }
             return;
         }
         let t = self.col(price.weight, 0.0, f64::INFINITY);
-        self.at_least(-price.terms + t, price.base);
+        let mut row = Expr::with_capacity(price.terms.cols.len() + 1);
+        row -= price.terms;
+        row += t;
+        self.at_least(row, price.base);
     }
 
     /// The LP, the safety rows last.
@@ -68,7 +71,7 @@ impl Sink for DenseSink {
 impl AccelSink for DenseSink {
     /// The prices (`v` above and below `v_des`, then braking), then the speed limit if the
     /// boxes let the speed leave `[0, v_cap]`.
-    fn step(&mut self, step: Step) {
+    fn step(&mut self, step: Step<'_>) {
         let Step {
             limit,
             deviation,
@@ -79,7 +82,7 @@ impl AccelSink for DenseSink {
         }
         let (lo, hi) = limit.change.range(self.bounds());
         if limit.may_bind(lo, hi) {
-            self.row(limit.bounds(), limit.change);
+            self.row(limit.bounds(), Expr::from(limit.change));
         }
     }
 

@@ -32,7 +32,7 @@ impl HighsSink {
 
     /// A step's price columns (the MILP makes them with its step's other columns, their rows
     /// later).
-    pub fn price_columns(&mut self, step: &Step) -> PriceCols {
+    pub fn price_columns(&mut self, step: &Step<'_>) -> PriceCols {
         PriceCols {
             deviation: self.col(step.deviation.weight, 0.0, f64::INFINITY),
             brakes: step.brakes.each_ref().map(|p| self.col(p.weight, 0.0, f64::INFINITY)),
@@ -41,13 +41,13 @@ impl HighsSink {
 
     /// A price column is at least its argument: `dev >= v_des - v`, `dev >= v - v_des`,
     /// `t >= base + terms` for each braking price.
-    pub fn price_rows(&mut self, step: &Step, cols: &PriceCols) {
+    pub fn price_rows(&mut self, step: &Step<'_>, cols: &PriceCols) {
         let [over, under] = step.deviation.halves();
         for half in [under, over] {
             self.at_least(cols.deviation - half.terms, half.base);
         }
         for (price, &t) in step.brakes.iter().zip(&cols.brakes) {
-            self.at_least(t - price.terms.clone(), price.base);
+            self.at_least(t - price.terms, price.base);
         }
     }
 
@@ -71,8 +71,8 @@ impl Sink for HighsSink {
 
 impl AccelSink for HighsSink {
     /// The speed limit row (always), then the price columns and their rows.
-    fn step(&mut self, step: Step) {
-        self.row(step.limit.bounds(), step.limit.change.clone());
+    fn step(&mut self, step: Step<'_>) {
+        self.row(step.limit.bounds(), Expr::from(step.limit.change));
         let cols = self.price_columns(&step);
         self.price_rows(&step, &cols);
     }

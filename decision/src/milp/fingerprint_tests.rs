@@ -169,10 +169,10 @@ fn fingerprint(config: &PlannerConfig, situations: usize, sequences: usize, dump
                     p.line(&format!("{actions:?} {mode:?}"));
                     let (m, u) = highs_model(&problem, &r, &rows, mode);
                     mip(&mut p, &m);
-                    u.iter().for_each(|&c| p.int("u ", c));
+                    u.iter().for_each(|&c| p.int("u ", c.index()));
                     let (lp, u) = dense_model(&problem, &r, &rows, mode);
                     dense(&mut p, &lp);
-                    u.iter().for_each(|&c| p.int("u ", c));
+                    u.iter().for_each(|&c| p.int("u ", c.index()));
                 }
             }
         }
