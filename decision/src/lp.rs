@@ -3,15 +3,19 @@
 //! (a [`MipModel`](crate::highs_solver::MipModel), for the MILP and the exact evaluation's
 //! reference LP) and [`DenseSink`] (the dense simplex, with its exact reductions).
 //!
-//! Rows read as the formulation writes them:
+//! Rows read as the formulation writes them (`b` a [`Sink`]):
 //!
 //! ```ignore
-//! b.at_least(dev + v - v_des, 0.0);                 // dev >= v_des - v
-//! b.row(-v0..=cap - v0, dt * u.iter().sum::<Expr>());
+//! b.at_least(o - z, 0.0);                          // o[s][l] >= z[j][l]
+//! b.at_most(left + right + down + up, 1.0);        // one action per step
+//! b.at_least(t - price.terms, price.base);         // t >= base + terms
+//! b.row(-v0..=cap - v0, Expr::from(change));       // 0 <= v0 + dt sum u <= v_cap
 //! ```
 //!
-//! An [`Expr`] keeps its terms in the order they were written and its constant apart; a
-//! row's bounds are its bounds minus the constant. The order matters: a column repeated in
+//! `col * k` is a [`Term`], `Scaled { cols, coef }` a borrowed `coef * sum(cols)`; both go
+//! into an [`Expr`] by `+` and `-` without an allocation of their own. An expression keeps its
+//! terms in the order they were written and its constant apart; a row's bounds are its bounds
+//! minus the constant. The order matters: a column repeated in
 //! a row is summed in it, and HiGHS and the dense simplex choose among tied optima by the
 //! order of columns and rows, so the sinks emit exactly what the builders used to
 //! (`milp::fingerprint_tests`).
@@ -133,7 +137,6 @@ impl Linear for Scaled<'_> {
     fn add_to(self, e: &mut Expr, negate: bool) {
         let coef = signed(self.coef, negate);
         e.terms.extend(self.cols.iter().map(|&c| (c, coef)));
-        e.constant += signed(0.0, negate);
     }
 }
 
@@ -153,6 +156,8 @@ fn range(terms: impl Iterator<Item = (Col, f64)>, bounds: impl Fn(Col) -> (f64, 
 }
 
 /// What an expression takes in by `+` and `-`: a column, a term, a constant, an expression.
+/// Terms leave the constant as it is (not even `+ 0.0`, which would turn a `-0.0` into
+/// `0.0`): a row's bounds are computed exactly as they were before the builder existed.
 pub trait Linear {
     /// Add `self` (`negate`: `-self`) to `e`: its terms after `e`'s, its constant to `e`'s.
     fn add_to(self, e: &mut Expr, negate: bool);
@@ -176,7 +181,6 @@ impl Linear for Col {
 impl Linear for Term {
     fn add_to(self, e: &mut Expr, negate: bool) {
         e.terms.push((self.col, signed(self.coef, negate)));
-        e.constant += signed(0.0, negate);
     }
 }
 

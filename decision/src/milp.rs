@@ -131,8 +131,9 @@ impl<'p> Builder<'p> {
     /// Ego position after step `s`.
     fn position(&self, s: usize) -> Expr {
         let kin = &self.problem.kin;
-        let moved: Expr = (0..=s).map(|j| self.cols.accel[j] * kin.position_gain(s, j)).sum();
-        moved + kin.coasting_position(&self.problem.ego, s)
+        let mut x = Expr::constant(kin.coasting_position(&self.problem.ego, s));
+        x.extend((0..=s).map(|j| self.cols.accel[j] * kin.position_gain(s, j)));
+        x
     }
 
     fn step_columns(&mut self) {

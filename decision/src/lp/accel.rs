@@ -221,7 +221,6 @@ impl Linear for RowSlacks {
     fn add_to(self, e: &mut Expr, negate: bool) {
         let cols = self.hysteresis.into_iter().chain(self.global);
         e.extend(cols.map(|c| if negate { -c } else { c * 1.0 }));
-        e.constant += if negate { -0.0 } else { 0.0 };
     }
 }
 

@@ -4,6 +4,8 @@
 //! same terms as another keeps only the larger right-hand side. What is left is usually a
 //! handful of rows.
 
+use std::cmp::Ordering;
+
 use super::accel::{AccelSink, Price, Step};
 use super::{Col, Expr, Sink};
 use dense_lp::DenseLp;
@@ -87,8 +89,9 @@ impl AccelSink for DenseSink {
     }
 
     fn keeps(&self, gap: &Expr, demand: f64) -> bool {
+        // Dropped when its smallest gap over the boxes meets the demand (a NaN keeps it).
         let (lo, _) = gap.range(self.bounds());
-        !(lo >= demand)
+        !matches!(lo.partial_cmp(&demand), Some(Ordering::Greater | Ordering::Equal))
     }
 
     fn safety_row(&mut self, row: Expr, demand: f64) {
