@@ -5,7 +5,7 @@
 //!
 //! Rows read as the formulation writes them (`b` a [`Sink`]):
 //!
-//! ```ignore
+//! ```text
 //! b.at_least(o - z, 0.0);                          // o[s][l] >= z[j][l]
 //! b.at_most(left + right + down + up, 1.0);        // one action per step
 //! b.at_least(t - price.terms, price.base);         // t >= base + terms
