@@ -22,13 +22,13 @@ pub mod highs_solver;
 pub mod hysteresis;
 pub mod idm;
 pub mod lanes;
+pub mod lp;
 pub mod milp;
 pub mod model;
 pub mod plain_nominal;
 pub mod planner;
 pub mod problem;
 pub mod scenario;
-pub mod small_lp;
 pub mod types;
 pub mod validate;
 
