@@ -1,5 +1,6 @@
 //! `planner serve`: the service with its front ends until SIGINT or SIGTERM.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -84,6 +85,11 @@ pub struct ServeArgs {
     /// Start a new file after this long, e.g. `1h`.
     #[arg(long, value_parser = humantime::parse_duration, requires = "record")]
     record_rotate_every: Option<Duration>,
+    /// Serve a live view to Foxglove on this address (IP:PORT; without a value
+    /// 127.0.0.1:8765): every request, answer and statistics document on the recording's
+    /// topics and a 3D scene per answer (docs/live-view.md). Never delays an answer.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    foxglove: Option<SocketAddr>,
     /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
     #[arg(long, default_value_t = planner_service::QUEUE_PER_VEHICLE)]
     vehicle_queue: usize,

@@ -1,5 +1,6 @@
-//! What watches the service: the recording (`--record`), a [`PlanObserver`] on the service's
-//! answer path, and the statistics it gets every second.
+//! What watches the service: the recording (`--record`) and the live view (`--foxglove`),
+//! both [`PlanObserver`]s on the service's answer path, and the statistics they get every
+//! second.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -7,6 +8,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use live_view::{LiveOptions, PlannerView};
 use planner_service::{Stats, StatsSnapshot};
 use recording::{Observers, PlanObserver, PlanRecorder, RecorderOptions, Rotation};
 
@@ -15,6 +17,7 @@ use super::ServeArgs;
 /// The observers of one `planner serve`.
 pub struct Watching {
     recorder: Option<PlanRecorder>,
+    live: Option<Arc<PlannerView>>,
     observers: Observers,
 }
 
@@ -25,7 +28,7 @@ pub struct StatsThread {
 }
 
 impl Watching {
-    /// Starts the recording the command line asks for.
+    /// Starts the recording and the live view the command line asks for.
     pub fn start(args: &ServeArgs) -> Result<Self> {
         let recorder = match &args.record {
             Some(path) => {
@@ -39,12 +42,24 @@ impl Watching {
             }
             None => None,
         };
+        let live = match args.foxglove {
+            Some(addr) => {
+                let view = PlannerView::start(&LiveOptions::new(addr, "hmdp planner"))
+                    .with_context(|| format!("--foxglove {addr}"))?;
+                Some(Arc::new(view))
+            }
+            None => None,
+        };
         let mut observers: Vec<Arc<dyn PlanObserver>> = Vec::new();
         if let Some(r) = &recorder {
             observers.push(Arc::new(r.clone()));
         }
+        if let Some(v) = &live {
+            observers.push(Arc::clone(v) as Arc<dyn PlanObserver>);
+        }
         Ok(Self {
             recorder,
+            live,
             observers: Observers::new(observers),
         })
     }
@@ -84,7 +99,7 @@ impl Watching {
     }
 
     /// After the service stopped: the final statistics to every observer, the recording
-    /// completed.
+    /// completed, the live view stopped.
     pub fn finish(self, stats_thread: Option<StatsThread>, snapshot: &StatsSnapshot) -> Result<()> {
         if let Some(t) = stats_thread {
             t.stop.store(true, Ordering::Relaxed);
@@ -98,6 +113,19 @@ impl Watching {
                 messages = summary.messages,
                 dropped = summary.dropped,
                 "recording finished"
+            );
+        }
+        drop(self.observers);
+        if let Some(live) = self.live {
+            // The last handle.
+            let counters = match Arc::try_unwrap(live) {
+                Ok(view) => view.finish(),
+                Err(view) => view.server().counters(),
+            };
+            tracing::info!(
+                published = counters.published,
+                dropped = counters.dropped,
+                "live view stopped"
             );
         }
         Ok(())
