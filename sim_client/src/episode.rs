@@ -278,17 +278,46 @@ fn record_states(world: &World, out: &mut Vec<VehicleState>) {
 }
 
 /// Sees (and may change) the world after its initial state and after every low-level step,
-/// before the step is scored: how a recording captures the ground truth and how a log replay
-/// puts the SVs on their recorded trajectories.
+/// before the step is scored, and sees every decision: how a recording captures the ground
+/// truth, how a log replay puts the SVs on their recorded trajectories and how the live view
+/// (`sim_client case1 --foxglove`) shows the run while it goes.
 pub trait StepObserver {
     /// Called with the world after step `world.step_index()`.
     fn after_step(&mut self, world: &mut World) -> Result<()>;
+
+    /// Called with every decision as it is taken, before the steps it commands.
+    fn after_decision(&mut self, _decision: &DecisionRecord) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// Observes nothing.
 impl StepObserver for () {
     fn after_step(&mut self, _world: &mut World) -> Result<()> {
         Ok(())
+    }
+}
+
+impl<T: StepObserver + ?Sized> StepObserver for &mut T {
+    fn after_step(&mut self, world: &mut World) -> Result<()> {
+        (**self).after_step(world)
+    }
+
+    fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
+        (**self).after_decision(decision)
+    }
+}
+
+/// Both observers, the first first (e.g. a recording and the live view).
+impl<A: StepObserver, B: StepObserver> StepObserver for (A, B) {
+    fn after_step(&mut self, world: &mut World) -> Result<()> {
+        self.0.after_step(world)?;
+        self.1.after_step(world)
+    }
+
+    fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
+        self.0.after_decision(decision)?;
+        self.1.after_decision(decision)
     }
 }
 
@@ -393,6 +422,7 @@ pub fn run_episode_observed(
                     nominal_class: None,
                 },
             };
+            observer.after_decision(&record)?;
             episode.decisions.push(record);
         }
         let collisions = world.step();

@@ -12,7 +12,7 @@ use sim_client::{Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
 
 use load_command::{LoadArgs, LoadWorkerArgs};
-use study_commands::{CampaignArgs, PaperArgs};
+use study_commands::{CampaignArgs, LiveArgs, PaperArgs};
 
 mod load_command;
 mod replay_command;
@@ -248,6 +248,8 @@ enum Command {
         /// MCAP file (docs/recording.md).
         #[arg(long, value_name = "FILE.mcap")]
         record: Option<PathBuf>,
+        #[command(flatten)]
+        live: LiveArgs,
     },
     /// Log replay: the SVs of a recording follow their recorded trajectories, the ego is
     /// re-planned from its recorded start; scored like a campaign trial.
@@ -314,7 +316,8 @@ fn main() -> Result<()> {
             seed,
             paper,
             record,
-        } => study_commands::run_case1(&common, seed, &paper, record.as_deref())?,
+            live,
+        } => study_commands::run_case1(&common, seed, &paper, record.as_deref(), &live)?,
         Command::Replay { common, replay } => {
             let (transport, _planner) = common.open(None)?;
             replay_command::run_replay(&replay, &transport, &common.planner_config()?)?;

@@ -1,5 +1,6 @@
 //! `planner serve`: the service with its front ends until SIGINT or SIGTERM.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -9,11 +10,12 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use hmdp_ros2::MarkersFor;
 use planner_service::config_file::ServiceSection;
-use planner_service::{RateLimit, Service, ServiceConfig, Stats, QUEUE_PER_WORKER};
+use planner_service::{RateLimit, Service, ServiceConfig, QUEUE_PER_WORKER};
 use protocol::ResponseSigner;
-use recording::{PlanRecorder, RecorderOptions, Rotation};
 use tokio::sync::oneshot;
 use transport::iceoryx2::{ServerOptions, WaitMode};
+
+mod observe;
 
 #[derive(clap::Args)]
 pub struct ServeArgs {
@@ -83,6 +85,11 @@ pub struct ServeArgs {
     /// Start a new file after this long, e.g. `1h`.
     #[arg(long, value_parser = humantime::parse_duration, requires = "record")]
     record_rotate_every: Option<Duration>,
+    /// Serve a live view to Foxglove on this address (IP:PORT; without a value
+    /// 127.0.0.1:8765): every request, answer and statistics document on the recording's
+    /// topics and a 3D scene per answer (docs/live-view.md). Never delays an answer.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    foxglove: Option<SocketAddr>,
     /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
     #[arg(long, default_value_t = planner_service::QUEUE_PER_VEHICLE)]
     vehicle_queue: usize,
@@ -273,20 +280,10 @@ pub fn run(args: ServeArgs) -> Result<()> {
         None
     };
     let mut config = config;
-    config.recorder = match &args.record {
-        Some(path) => {
-            let mut options = RecorderOptions::new(path);
-            options.rotation = Rotation {
-                max_bytes: args.record_rotate_mib.map(|m| m.saturating_mul(1 << 20)),
-                max_duration: args.record_rotate_every,
-            };
-            tracing::info!(file = %path.display(), "recording");
-            Some(PlanRecorder::start(&options).with_context(|| format!("recording to {}", path.display()))?)
-        }
-        None => None,
-    };
+    let watching = observe::Watching::start(&args)?;
+    config.observers = watching.observers();
     let service = Arc::new(Service::start(planner_config, config.clone())?);
-    let stats_recording = config.recorder.clone().map(|r| record_stats(r, service.stats()));
+    let stats_thread = watching.publish_stats(service.stats());
     tracing::info!(
         workers = config.workers,
         queue = config.queue_capacity,
@@ -335,42 +332,10 @@ pub fn run(args: ServeArgs) -> Result<()> {
     // statistics count every answer.
     let stats = service.stats();
     drop(service);
+    // The observers' last handles are in `watching`: `finish` stops them.
+    drop(config);
     let snapshot = stats.snapshot();
     tracing::info!(stats = %serde_json::to_string(&snapshot).unwrap_or_default(), "final statistics");
-    if let (Some(recorder), Some((stop, thread))) = (config.recorder, stats_recording) {
-        stop.store(true, Ordering::Relaxed);
-        let _ = thread.join();
-        recorder.stats(&snapshot);
-        let summary = recorder.finish()?;
-        tracing::info!(
-            files = ?summary.files,
-            messages = summary.messages,
-            dropped = summary.dropped,
-            "recording finished"
-        );
-    }
+    watching.finish(stats_thread, &snapshot)?;
     result
-}
-
-/// Records the statistics document every second, as the Zenoh front publishes it, and warns
-/// when records were dropped.
-fn record_stats(recorder: PlanRecorder, stats: Arc<Stats>) -> (Arc<AtomicBool>, JoinHandle<()>) {
-    let stop = Arc::new(AtomicBool::new(false));
-    let stopped = Arc::clone(&stop);
-    let thread = std::thread::spawn(move || {
-        let mut dropped = 0;
-        let mut next = std::time::Instant::now();
-        while !stopped.load(Ordering::Relaxed) {
-            next += Duration::from_secs(1);
-            while std::time::Instant::now() < next && !stopped.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(50));
-            }
-            recorder.stats(&stats.snapshot());
-            if recorder.dropped() > dropped {
-                dropped = recorder.dropped();
-                tracing::warn!(dropped, "the recorder is behind: records dropped");
-            }
-        }
-    });
-    (stop, thread)
 }
