@@ -6,12 +6,12 @@
 //! [--situations N]` (N per class, default 6).
 use std::time::Instant;
 
+use decision::accel_lp::{by_dense, by_highs};
 use decision::corpus::{paper_classes, SituationGenerator};
-use decision::evaluate::accel_lp::{by_dense, by_highs};
-use decision::evaluate::{requirements, Mode};
-use decision::model::rollout;
-use decision::problem::prepare;
+use decision::prepare;
+use decision::rollout;
 use decision::PlannerConfig;
+use decision::{requirements, Mode};
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]

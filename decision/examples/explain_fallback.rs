@@ -3,9 +3,8 @@
 //!
 //! `cargo run --release -p decision --example explain_fallback -- SITUATION.json... [--config F]`
 //! (situations as `sim_client/examples/diagnose.rs` writes them with `DUMP_FALLBACK`).
-use decision::enumeration;
-use decision::evaluate::Mode;
-use decision::problem::prepare;
+use decision::prepare;
+use decision::Mode;
 use decision::{PlannerConfig, Situation};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -25,7 +24,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ego.x_m, ego.y_m, ego.v_mps, ego.maneuver, problem.ego.occupancy
         );
         for mode in [Mode::Nominal, Mode::Relaxed] {
-            let (best, count) = enumeration::solve(&problem, mode);
+            let (best, count) = decision::solve_by_enumeration(&problem, mode);
             println!(
                 "  {mode:?}: {} ({count} sequences)",
                 best.map_or("infeasible".into(), |e| format!("cost {:.2}", e.cost))
@@ -34,7 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for (i, c) in problem.svs.iter().enumerate() {
             let mut alone = problem.clone();
             alone.svs = vec![problem.svs[i].clone()];
-            let feasible = |mode| enumeration::solve(&alone, mode).0.is_some();
+            let feasible = |mode| decision::solve_by_enumeration(&alone, mode).0.is_some();
             if feasible(Mode::Nominal) {
                 continue;
             }

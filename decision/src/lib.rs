@@ -9,34 +9,45 @@
 //! enumeration of the ego's action sequences ([`Backend::Enumeration`]), the exact oracle the
 //! tests hold the MILP to.
 
+// The configuration's sections are a namespace of their own (`decision::config::IdmParams`);
+// the corpus is the tests' and benches' generator (feature `corpus`). Every other module is
+// private: what the core offers is the list below.
 pub mod config;
 #[cfg(feature = "corpus")]
 pub mod corpus;
-pub mod enumeration;
-pub mod error;
-pub mod evaluate;
-pub mod evidence;
-pub mod fallback;
+mod enumeration;
+mod error;
+mod evaluate;
+mod evidence;
+mod fallback;
 mod highs_cores;
-pub mod highs_solver;
-pub mod hysteresis;
-pub mod idm;
-pub mod lanes;
-pub mod lp;
-pub mod milp;
-pub mod model;
-pub mod plain_nominal;
-pub mod planner;
-pub mod problem;
-pub mod scenario;
-pub mod types;
-pub mod validate;
+mod highs_solver;
+mod hysteresis;
+mod idm;
+mod lanes;
+mod lp;
+mod milp;
+mod model;
+mod plain_nominal;
+mod planner;
+mod problem;
+mod scenario;
+mod types;
+mod validate;
 
+// The exact evaluation of one sequence and its acceleration LP, for the examples that
+// measure them and the tests that hold the backends to them.
 pub use config::{Backend, LateralDeparture, PlannerConfig};
+pub use enumeration::solve as solve_by_enumeration;
 pub use error::{ConfigError, DecisionError, InputError, SolverError};
+pub use evaluate::{accel_lp, evaluate, requirements, Evaluation, Mode};
 pub use highs_solver::InterruptHandle;
+pub use idm::idm_distance;
+pub use lanes::{LaneSet, ROAD_EDGE_TOLERANCE_M};
+pub use model::{admissible_sequences, rollout, Rollout};
 pub use plain_nominal::{classify_nominal, NominalClass};
 pub use planner::{fallback_only, Planner};
+pub use problem::{prepare, Prepared, Problem, SvConstraint};
 pub use types::{
     Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, SetPoint, Situation,
     SolveStats, SvObservation, Threat,

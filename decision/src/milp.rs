@@ -442,7 +442,9 @@ fn decode(problem: &Problem, cols: &Columns, values: &[f64]) -> (Vec<Action>, Ve
 
 mod backend;
 mod branch;
-pub use backend::{LayerOutcome, MilpBackend};
+#[cfg(test)]
+use backend::LayerOutcome;
+pub use backend::MilpBackend;
 
 #[cfg(test)]
 #[path = "milp_tests.rs"]

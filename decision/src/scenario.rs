@@ -81,6 +81,7 @@ pub fn action_probabilities(
 /// Roll the SV's HMDP over the horizon, prune branches below `p_min`, keep the `K` most
 /// probable (ties in action-set order) and renormalise. The most probable branch is always
 /// kept, so a prediction never vanishes.
+#[cfg(test)]
 pub fn predict_branches(
     config: &PlannerConfig,
     kin: &Kinematics,

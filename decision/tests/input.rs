@@ -66,7 +66,7 @@ proptest! {
         prop_assert!(matches!(e, InputError::LaneOutOfRange { .. }), "{:?}", e);
         // An SV beyond the road edge (half a lane beyond the outermost lane centre) by more
         // than the tolerance of a measurement.
-        let y_off = s.road.lane_width_m / 2.0 + decision::lanes::ROAD_EDGE_TOLERANCE_M + y_beyond_edge;
+        let y_off = s.road.lane_width_m / 2.0 + decision::ROAD_EDGE_TOLERANCE_M + y_beyond_edge;
         s.svs[0].y_m = if seed % 2 == 0 { -y_off } else { f64::from(lanes - 1) * s.road.lane_width_m + y_off };
         let e = input_error(&mut p, &s);
         prop_assert!(matches!(e, InputError::LaneOutOfRange { .. }), "{:?}", e);

@@ -6,8 +6,8 @@
 //! this: tests/scenario_tree.rs.)
 
 use decision::config::LateralDeparture;
-use decision::lanes::LaneSet;
-use decision::problem::prepare;
+use decision::prepare;
+use decision::LaneSet;
 use decision::{EgoState, Maneuver, PlannerConfig, PlannerMemory, Road, Situation, SvObservation};
 
 /// Three lanes 4 m wide (lane 3 at y = 0, lane 2 at 4, lane 1 at 8); the ego in lane 2 at

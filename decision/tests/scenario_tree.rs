@@ -1,7 +1,7 @@
 //! The SV scenario tree with evidence (`prediction.evidence`, decision/src/evidence.rs): a
 //! branch survives where the evidence makes it likely, and changes the decision.
 
-use decision::problem::prepare;
+use decision::prepare;
 use decision::{
     Action, EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation,
 };

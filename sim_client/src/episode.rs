@@ -289,6 +289,11 @@ pub trait StepObserver {
     fn after_decision(&mut self, _decision: &DecisionRecord) -> Result<()> {
         Ok(())
     }
+
+    /// Called once when the episode ends (its duration, or the ego's collision).
+    fn at_end(&mut self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// Observes nothing.
@@ -306,6 +311,10 @@ impl<T: StepObserver + ?Sized> StepObserver for &mut T {
     fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
         (**self).after_decision(decision)
     }
+
+    fn at_end(&mut self) -> Result<()> {
+        (**self).at_end()
+    }
 }
 
 /// Both observers, the first first (e.g. a recording and the live view).
@@ -318,6 +327,11 @@ impl<A: StepObserver, B: StepObserver> StepObserver for (A, B) {
     fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
         self.0.after_decision(decision)?;
         self.1.after_decision(decision)
+    }
+
+    fn at_end(&mut self) -> Result<()> {
+        self.0.at_end()?;
+        self.1.at_end()
     }
 }
 
@@ -448,6 +462,7 @@ pub fn run_episode_observed(
             break;
         }
     }
+    observer.at_end()?;
     episode.safety = safety.summary();
     episode.steps = world.step_index();
     episode.simulated_s = world.time();

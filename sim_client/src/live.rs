@@ -16,8 +16,8 @@ use traffic::World;
 use crate::episode::{DecisionRecord, StepObserver};
 use crate::error::Result;
 use crate::record::{
-    channels, nanos, planned_steps, scene_road, step_scene, vehicle_states, SimDecision, TrialInfo, DECISION_TOPIC,
-    SCENE_TOPIC, TRIAL_TOPIC, VEHICLES_TOPIC,
+    channels, nanos, planned_steps, scene_road, step_scene, vehicle_states, RecordedVehicle, SimDecision, TrialInfo,
+    DECISION_TOPIC, SCENE_TOPIC, TRIAL_TOPIC, VEHICLES_TOPIC,
 };
 
 /// How fast the live run goes.
@@ -45,6 +45,10 @@ pub struct LiveTrial {
     trial_every: u64,
     plan: Vec<PlannedStep>,
     corrective: Vec<u32>,
+    /// The last step's scene, published once the decisions of its time are known (a step
+    /// at a decision time is seen before its decision, and its scene draws that decision's
+    /// plan, as the recording's does).
+    pending_scene: Option<(u64, Vec<RecordedVehicle>)>,
 }
 
 impl std::fmt::Debug for LiveTrial {
@@ -75,6 +79,7 @@ impl LiveTrial {
             trial_every,
             plan: Vec::new(),
             corrective: Vec::new(),
+            pending_scene: None,
         })
     }
 
@@ -108,6 +113,16 @@ impl LiveTrial {
         }
     }
 
+    /// Publishes the pending scene with the plan of the last decision.
+    fn publish_pending_scene(&mut self) {
+        if let Some((at, vehicles)) = self.pending_scene.take() {
+            let (road, plan, corrective) = (self.road, self.plan.clone(), self.corrective.clone());
+            self.server.publish_with(self.scene, at, move || {
+                recording::json::to_vec(&step_scene(at, road, &vehicles, &plan, &corrective))
+            });
+        }
+    }
+
     /// Wall-clock ns of simulated time `time_s`.
     fn log_time(&mut self, time_s: f64) -> u64 {
         self.origin().1.saturating_add(nanos(time_s))
@@ -122,16 +137,9 @@ impl StepObserver for LiveTrial {
         if states.step.is_multiple_of(self.trial_every) {
             self.server.publish_json(self.trial, at, self.info.clone());
         }
+        self.publish_pending_scene();
         if self.server.is_watched(self.scene) {
-            let (road, plan, corrective, vehicles) = (
-                self.road,
-                self.plan.clone(),
-                self.corrective.clone(),
-                states.vehicles.clone(),
-            );
-            self.server.publish_with(self.scene, at, move || {
-                recording::json::to_vec(&step_scene(at, road, &vehicles, &plan, &corrective))
-            });
+            self.pending_scene = Some((at, states.vehicles.clone()));
         }
         self.server.publish_json(self.vehicles, at, states);
         Ok(())
@@ -151,6 +159,11 @@ impl StepObserver for LiveTrial {
                 recording::json::to_vec(&SimDecision::of(&record))
             });
         }
+        Ok(())
+    }
+
+    fn at_end(&mut self) -> Result<()> {
+        self.publish_pending_scene();
         Ok(())
     }
 }

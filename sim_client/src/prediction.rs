@@ -40,7 +40,7 @@ pub struct SvPrediction {
 pub fn sv_predictions(config: &PlannerConfig, situation: &Situation) -> Result<Vec<SvPrediction>, InputError> {
     let valid = ValidSituation::new(config, situation)?;
     let situation = valid.get();
-    let prepared = decision::problem::prepare(config, situation);
+    let prepared = decision::prepare(config, situation);
     Ok(prepared
         .problem
         .svs

@@ -2,7 +2,7 @@
 //! (an independent count, not the planner's own statistics).
 
 use decision::config::IdmParams;
-use decision::idm::idm_distance;
+use decision::idm_distance;
 use decision::PlannerConfig;
 use sim_client::cases::{run_case1, run_case2};
 use sim_client::episode::VehicleState;

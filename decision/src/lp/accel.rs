@@ -149,6 +149,7 @@ impl<T: Clone> CellMap<T> {
     }
 }
 
+#[cfg(test)]
 impl<T> CellMap<T> {
     pub fn iter(&self) -> impl Iterator<Item = (Cell, &T)> {
         let h = self.horizon;

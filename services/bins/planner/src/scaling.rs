@@ -1,8 +1,8 @@
 //! How solve time grows with the horizon, the action set and the SV count: both backends on
 //! the same seeded situations of the 4-lane highway class, with their agreement.
 
+use decision::admissible_sequences;
 use decision::corpus::{agree, paper_classes, SituationGenerator, TrafficClass};
-use decision::model::admissible_sequences;
 use decision::{DecisionError, PlannerConfig};
 use serde::Serialize;
 use stats::Percentiles;
