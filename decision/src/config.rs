@@ -143,6 +143,20 @@ pub struct IdmParams {
     /// comfortable braking, not the strongest. The floor rows keep the decay alone. 0: the
     /// decay alone; with `violation_decay = 0` (the margin holds at once) it does nothing.
     pub violation_recovery_mps2: f64,
+    /// Whose speeds size the distance to an SV behind the ego.
+    pub rear_distance: RearDistance,
+}
+
+/// The IDM distance to an SV behind the ego.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RearDistance {
+    /// The SV follows the ego: `d_idm(v_sv, v_sv - v_ev)`, the distance the SV's own IDM
+    /// keeps (formulation.md).
+    SvFollows,
+    /// The paper's literal form for every SV (its `d_idm` after eq:deterministic's
+    /// definition): the ego's speed and `dv = v_ev - v_sv`, as if the ego followed.
+    EgoSpeed,
 }
 
 impl Default for IdmParams {
@@ -155,6 +169,7 @@ impl Default for IdmParams {
             speed_dependent: true,
             violation_decay: 0.8,
             violation_recovery_mps2: 1.5,
+            rear_distance: RearDistance::SvFollows,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Layer B: the deterministic fallback (paper eq. fallback_policy). It never fails.
 
 use crate::config::PlannerConfig;
-use crate::idm::idm_distance;
+use crate::idm::{idm_distance, sv_idm_distance};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::Kinematics;
 use crate::types::{Beta, Situation, Threat};
@@ -87,7 +87,7 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                     id: sv.id,
                     gap: -dx - length,
                     closing: sv.v_mps - ego.v_mps,
-                    deficit: idm_distance(&config.idm, sv.v_mps, ego.v_mps) - (-dx - length),
+                    deficit: sv_idm_distance(&config.idm, ego.v_mps, sv.v_mps, false) - (-dx - length),
                 };
                 let threat = c.closing > 0.0 || c.deficit > 0.0;
                 if threat && rear.as_ref().is_none_or(|r| c.more_critical(r)) {

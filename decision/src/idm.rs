@@ -1,12 +1,28 @@
 //! IDM safety distance and the hysteresis thresholds built on it (paper III-C, III-D).
 
-use crate::config::{Hysteresis, IdmParams};
+use crate::config::{Hysteresis, IdmParams, RearDistance};
 
 /// IDM desired gap of a follower behind a leader, floored at the jam distance `d0`:
 /// `d0 + v_f T + v_f (v_f - v_l) / (2 sqrt(a b))`.
 pub fn idm_distance(p: &IdmParams, v_follower: f64, v_leader: f64) -> f64 {
     let dynamic = v_follower * (v_follower - v_leader) / (2.0 * (p.max_accel_mps2 * p.comfort_decel_mps2).sqrt());
     (p.jam_distance_m + v_follower * p.time_headway_s + dynamic).max(p.jam_distance_m)
+}
+
+/// Whether the ego takes the follower's place in the IDM distance to an SV: always for an
+/// SV ahead; for one behind only with [`RearDistance::EgoSpeed`].
+pub fn ego_as_follower(p: &IdmParams, sv_ahead: bool) -> bool {
+    sv_ahead || p.rear_distance == RearDistance::EgoSpeed
+}
+
+/// The IDM distance between the ego (speed `v_ego`) and an SV (speed `v_sv`) ahead of it
+/// or behind it ([`ego_as_follower`]).
+pub fn sv_idm_distance(p: &IdmParams, v_ego: f64, v_sv: f64, sv_ahead: bool) -> f64 {
+    if ego_as_follower(p, sv_ahead) {
+        idm_distance(p, v_ego, v_sv)
+    } else {
+        idm_distance(p, v_sv, v_ego)
+    }
 }
 
 /// Deterministic form of the chance constraint's right-hand side:

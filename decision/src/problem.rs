@@ -5,7 +5,7 @@
 use crate::config::{CostWeights, LateralDeparture, PlannerConfig};
 use crate::evidence;
 use crate::hysteresis;
-use crate::idm::{hard_margin, idm_distance, linearised_margins, thresholds};
+use crate::idm::{ego_as_follower, hard_margin, idm_distance, linearised_margins, sv_idm_distance, thresholds};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::{rollout, EgoStart, Kinematics, Rollout};
 use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches_from, Branch};
@@ -340,11 +340,7 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     let (x0, v0) = (ctx.start.x, ctx.start.v);
     let occupancy0 = ctx.start.occupancy;
     let ahead = sv.x_m >= x0;
-    let d_idm = if ahead {
-        idm_distance(&config.idm, v0, sv.v_mps)
-    } else {
-        idm_distance(&config.idm, sv.v_mps, v0)
-    };
+    let d_idm = sv_idm_distance(&config.idm, v0, sv.v_mps, ahead);
     let hard: Vec<f64> = ctx
         .variances
         .iter()
@@ -380,7 +376,14 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     };
     let (margin, slope) = if config.idm.speed_dependent {
         let speeds: Vec<Vec<f64>> = branches.iter().map(|b| b.v.clone()).collect();
-        linearised_margins(&config.idm, ahead, v0, sv.v_mps, &speeds, &ctx.sigmas)
+        linearised_margins(
+            &config.idm,
+            ego_as_follower(&config.idm, ahead),
+            v0,
+            sv.v_mps,
+            &speeds,
+            &ctx.sigmas,
+        )
     } else {
         (vec![hard.clone(); branches.len()], 0.0)
     };
