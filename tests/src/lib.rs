@@ -3,8 +3,13 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+mod attacker;
 pub mod instances;
+mod process;
 pub mod ros2;
+
+pub use attacker::send_without_reading;
+pub use process::{run_to_end, Finished};
 
 /// Path of a workspace binary built in the same profile as the running test.
 ///

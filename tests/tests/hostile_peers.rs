@@ -17,7 +17,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use protocol::{encode_bincode, ZENOH_PLAN_KEY};
-use system_tests::{normal_vehicle, worked_example_request, ZenohPlanner as Planner};
+use system_tests::{normal_vehicle, send_without_reading, worked_example_request, ZenohPlanner as Planner};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
@@ -126,22 +126,7 @@ fn never_reading_attacker() {
                     &endpoint,
                     serde_json::json!({ "transport": { "link": { "tcp": { "so_rcvbuf": 4096 } } } }),
                 );
-                for sequence in 1.. {
-                    // JSON: the larger answers fill the buffers sooner.
-                    let request = worked_example_request(900 + k, sequence);
-                    let _ = session
-                        .get(ZENOH_PLAN_KEY)
-                        .payload(protocol::encode_json(&request))
-                        .encoding(zenoh::bytes::Encoding::APPLICATION_JSON)
-                        .congestion_control(CongestionControl::Block)
-                        .timeout(Duration::from_secs(60))
-                        // Never returns: this session's receiving stops at the first reply.
-                        .callback(|_| loop {
-                            std::thread::sleep(Duration::from_secs(3600))
-                        })
-                        .wait();
-                    std::thread::sleep(Duration::from_micros(100));
-                }
+                send_without_reading(&session, 900 + k, &AtomicU64::new(0))
             })
         })
         .collect();

@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use system_tests::instances::{RoutedPlanners, INSTANCES};
-use system_tests::{python_ready, scratch_dir, signal};
+use system_tests::{python_ready, run_to_end, scratch_dir, signal};
 use transport::zenoh::instances::rendezvous_order;
 
 /// How long the processes may take to start serving (debug builds on a shared machine).
@@ -58,36 +58,26 @@ impl ClientRun {
     }
 }
 
-/// Runs `python3 hmdp_client.py args...`; output through files, killed after CLIENT_LIMIT.
+/// Runs `python3 hmdp_client.py args...` to its end ([`run_to_end`], killed after
+/// CLIENT_LIMIT).
 fn run_client(dir: &Path, args: &[&str]) -> ClientRun {
-    let (out_path, err_path) = (dir.join("client.stdout"), dir.join("client.stderr"));
-    let started = Instant::now();
-    let mut child = Command::new("python3")
-        .arg(client_dir().join("hmdp_client.py"))
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(std::fs::File::create(&out_path).unwrap())
-        .stderr(std::fs::File::create(&err_path).unwrap())
-        .spawn()
-        .expect("python3 runs");
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if started.elapsed() > CLIENT_LIMIT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("client {args:?} still running after {CLIENT_LIMIT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
-    let stdout = std::fs::read_to_string(&out_path).unwrap();
-    let stderr = std::fs::read_to_string(&err_path).unwrap();
+    let run = run_to_end(
+        Command::new("python3")
+            .arg(client_dir().join("hmdp_client.py"))
+            .args(args),
+        dir,
+        "client",
+        CLIENT_LIMIT,
+    );
     ClientRun {
-        code: status.code().unwrap_or(-1),
-        lines: stdout.lines().filter_map(|l| serde_json::from_str(l).ok()).collect(),
-        stdout,
-        stderr,
+        code: run.code,
+        lines: run
+            .stdout
+            .lines()
+            .filter_map(|l| serde_json::from_str(l).ok())
+            .collect(),
+        stdout: run.stdout,
+        stderr: run.stderr,
     }
 }
 

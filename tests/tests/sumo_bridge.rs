@@ -17,10 +17,11 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 use serde_json::Value;
+use system_tests::run_to_end;
 
 /// A bridge run that takes longer than this is hung: killed, and the test fails.
 const BRIDGE_LIMIT: Duration = Duration::from_secs(240);
@@ -51,35 +52,16 @@ fn require_sumo() {
     }
 }
 
-/// Runs `python3 args` in `dir` within BRIDGE_LIMIT; (exit code, stdout, stderr).
+/// Runs `python3 args` (in the repository) to its end, its output in `dir`, within
+/// BRIDGE_LIMIT; (exit code, stdout, stderr).
 fn run_python(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let (out_path, err_path) = (dir.join("python.stdout"), dir.join("python.stderr"));
-    let started = Instant::now();
-    let mut child = Command::new("python3")
-        .args(args)
-        .current_dir(repo())
-        .stdin(Stdio::null())
-        .stdout(std::fs::File::create(&out_path).unwrap())
-        .stderr(std::fs::File::create(&err_path).unwrap())
-        .spawn()
-        .expect("python3 runs");
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if started.elapsed() > BRIDGE_LIMIT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!(
-                "python3 {args:?} still running after {BRIDGE_LIMIT:?}\n{}",
-                std::fs::read_to_string(&err_path).unwrap_or_default()
-            );
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let stdout = std::fs::read_to_string(&out_path).unwrap();
-    let stderr = std::fs::read_to_string(&err_path).unwrap();
-    (status.code().unwrap_or(-1), stdout, stderr)
+    let run = run_to_end(
+        Command::new("python3").args(args).current_dir(repo()),
+        dir,
+        "python",
+        BRIDGE_LIMIT,
+    );
+    (run.code, run.stdout, run.stderr)
 }
 
 /// The elements named `tag` of an XML document, as attribute maps. SUMO's outputs are plain

@@ -26,10 +26,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use protocol::ZENOH_PLAN_KEY;
-use system_tests::{normal_vehicle, scratch_dir, worked_example_request, Process, TlsFiles};
+use system_tests::{normal_vehicle, scratch_dir, send_without_reading, Process, TlsFiles};
 use transport::zenoh::{ZenohChannel, ZenohTarget};
-use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 /// Environment variable that turns this executable into the attacker: its Zenoh file.
@@ -64,22 +62,7 @@ fn never_reading_tls_attacker() {
             config.insert_json5("qos/network", "[]").unwrap();
             config.insert_json5("transport/link/tls/so_rcvbuf", "4096").unwrap();
             let session = zenoh::open(config).wait().expect("attacker session");
-            for sequence in 1.. {
-                let request = worked_example_request(900 + k, sequence);
-                let _ = session
-                    .get(ZENOH_PLAN_KEY)
-                    .payload(protocol::encode_json(&request))
-                    .encoding(zenoh::bytes::Encoding::APPLICATION_JSON)
-                    .congestion_control(CongestionControl::Block)
-                    .timeout(Duration::from_secs(60))
-                    // Never returns: this session's receiving stops at the first reply.
-                    .callback(|_| loop {
-                        std::thread::sleep(Duration::from_secs(3600))
-                    })
-                    .wait();
-                sent.fetch_add(1, Ordering::Relaxed);
-                std::thread::sleep(Duration::from_micros(100));
-            }
+            send_without_reading(&session, 900 + k, &sent)
         });
     }
     loop {
