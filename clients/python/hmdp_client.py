@@ -25,7 +25,13 @@ Output (stdout, one JSON object per line):
 With ``--planner-key`` (the ``.pub`` file of ``planner keygen``) every answer must carry the
 planner's signature: an answer that does not verify (a forged planner, an unsigned answer) is
 refused and counted on stderr, and the client waits for the real one until its timeout.
-Without it every answer is taken, signed or not (docs/protocol.md, "Authentication").
+Without it every answer is taken, signed or not (docs/protocol.md, "Authentication"), and so
+the client refuses to start when the endpoint is beyond this host (not a loopback address),
+where anyone on the network could answer, unless told ``--insecure`` (it then says so on
+stderr, in capitals). Loopback demos need no key.
+
+A request above the planner's message limit (64 KiB with Zenoh's headers) is refused before
+it is sent: Zenoh drops such a message on the way, and no answer could come back.
 
 Every request carries its send time (``sent_at_ns``, Unix time in ns): a planner that gets
 it older than its deadline answers ``stale_fallback`` at once.
@@ -48,9 +54,11 @@ Dependencies: eclipse-zenoh; cryptography for --planner-key (see requirements.tx
 
 import argparse
 import copy
+import ipaddress
 import json
 import queue
 import re
+import socket
 import sys
 import threading
 import time
@@ -72,6 +80,10 @@ STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
 PROTOCOL_VERSION = 3  # also in the iceoryx2 type names: hmdp::PlanRequest/v3
 # The JSON form is chosen by the query's encoding; anything else is read as bincode.
 JSON_ENCODING = "application/json"
+# Every Zenoh session of the project drops a message above 64 KiB while reassembling it,
+# unanswered (transport/link/rx/max_message_size); the key expression and Zenoh's headers
+# travel with the payload (transport::zenoh::check_request_size, the same bound).
+MAX_REQUEST_BYTES = 64 * 1024 - 1024
 
 # Planner period (deploy/planner.toml, timing.step_s): one snapshot per period in --steps.
 STEP_S = 0.4
@@ -119,7 +131,57 @@ class NoAnswer(Exception):
 
 
 class BadInput(Exception):
-    """The request to send cannot be read (exit code 1; the planner was not asked)."""
+    """The request to send cannot be read or sent (exit code 1; the planner was not asked)."""
+
+
+class RequestTooLarge(BadInput):
+    """A request no planner could receive: Zenoh drops it on the way, unanswered."""
+
+
+class Insecure(BadInput):
+    """A planner beyond this host without its public key, and no --insecure."""
+
+
+def endpoint_is_loopback(endpoint):
+    """Whether a Zenoh endpoint (``tcp/HOST:PORT``, ``tls/...``, ``unixsock-stream/PATH``)
+    stays on this host: a Unix socket, a loopback address, or a name that resolves to
+    loopback addresses only. A name that does not resolve counts as beyond (the Rust rule,
+    transport::zenoh::security::is_loopback_endpoint)."""
+    locator = re.split(r"[?#]", endpoint, maxsplit=1)[0]
+    protocol, _, address = locator.partition("/")
+    if protocol in ("unixsock-stream", "unixpipe"):
+        return True
+    if protocol not in ("tcp", "tls", "udp", "quic", "ws"):
+        return False
+    host, _, port = address.rpartition(":")
+    host = host.strip("[]")
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, int(port))
+    except (OSError, ValueError):
+        return False
+    return bool(infos) and all(ipaddress.ip_address(info[4][0]).is_loopback for info in infos)
+
+
+def check_security(endpoint, verifier, insecure):
+    """Refuses (Insecure) a planner beyond this host whose answers cannot be verified: there
+    anyone who can answer on the Zenoh network would be believed. With `insecure` it warns
+    on stderr instead."""
+    if verifier is not None or endpoint_is_loopback(endpoint):
+        return
+    if not insecure:
+        raise Insecure(
+            f"the planner at {endpoint} is beyond this host and its answers cannot be verified: "
+            "give its public key with --planner-key FILE.pub, or accept unverified answers with --insecure"
+        )
+    print(
+        f"INSECURE: answers from the planner at {endpoint} are not verified: anyone who can answer on "
+        "that network commands this vehicle; give the planner's public key (--planner-key)",
+        file=sys.stderr,
+    )
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -368,6 +430,12 @@ def ask(session, request, timeout_s, verifier=None, refused=None, instances=None
     """
     request["sent_at_ns"] = time.time_ns()
     payload = json.dumps(request).encode()
+    if len(payload) > MAX_REQUEST_BYTES:
+        # Zenoh would drop it on the way and the planner never see it: no answer could come.
+        raise RequestTooLarge(
+            f"a request of {len(payload)} bytes: the planner receives at most {MAX_REQUEST_BYTES} "
+            "(Zenoh drops larger messages unanswered)"
+        )
     vehicle_id = request.get("vehicle_id")
     order = []
     # A vehicle id the planner will reject anyway (not a u64) goes to the plain key.
@@ -497,6 +565,7 @@ def run(args):
         verifier = hmdp_signing.Verifier.from_file(args.planner_key) if args.planner_key else None
     except (OSError, ValueError, ImportError) as e:
         raise BadInput(f"planner key {args.planner_key}: {e}") from e
+    check_security(args.connect, verifier, args.insecure)
     refused = []
     session = open_session(args.connect)
     try:
@@ -516,7 +585,8 @@ def run(args):
                 print(f"rejected: {r['reason']} (field: {r['field'] or '-'})", file=sys.stderr)
                 code = 2
                 break
-            request = next_request(request, response["outcome"]["decided"])
+            if step < args.steps:
+                request = next_request(request, response["outcome"]["decided"])
         if stats is not None:
             # Published every second: at most a little over a second to wait.
             document = stats.wait(2.0)
@@ -541,6 +611,11 @@ def main(argv=None):
     parser.add_argument("--pretty", action="store_true", help="indent the JSON output")
     parser.add_argument(
         "--planner-key", metavar="FILE.pub", help="the planner's public key: refuse answers that do not verify"
+    )
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="without --planner-key, ask a planner beyond this host anyway (its answers are not verified)",
     )
     parser.add_argument(
         "--retry-after",

@@ -3,10 +3,10 @@
 use std::fmt;
 use std::time::Duration;
 
+use crate::inproc::InProcessChannel;
 use decision::PlannerConfig;
 use protocol::ResponseVerifier;
 use transport::iceoryx2::{ClientOptions, Iceoryx2Channel, WaitMode};
-use crate::inproc::InProcessChannel;
 use transport::zenoh::{ZenohChannel, ZenohTarget};
 use transport::PlanChannel;
 

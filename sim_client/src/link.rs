@@ -8,10 +8,10 @@
 
 use std::time::{Duration, Instant};
 
+use crate::inproc::InProcessChannel;
 use decision::{DecisionError, PlannerConfig};
 use protocol::{Layer, OutcomeRef, PlanRequest, PlanResponse, PlannerMemory, RejectReason, SetPoint, WireError};
 use thiserror::Error;
-use crate::inproc::InProcessChannel;
 use transport::{Answer, ChannelError, PlanChannel};
 
 pub use crate::connect::Transport;

@@ -38,4 +38,3 @@ pub fn run(out: &std::path::Path) -> Result<()> {
     );
     Ok(())
 }
-

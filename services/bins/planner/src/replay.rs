@@ -201,4 +201,3 @@ pub fn run(files: &[std::path::PathBuf], config: Option<&std::path::Path>, json:
     }
     Ok(if report.all_identical() { 0 } else { 1 })
 }
-

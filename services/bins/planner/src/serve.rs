@@ -175,9 +175,14 @@ async fn run_until_stopped(
 ) -> Result<()> {
     let (shutdown_tx, shutdown_rx) = oneshot::channel::<()>();
     let mut zenoh_task = zenoh_config.map(|(cfg, instance)| {
-        tokio::spawn(planner_service::zenoh_front::serve(service, cfg, instance, async move {
-            let _ = shutdown_rx.await;
-        }))
+        tokio::spawn(planner_service::zenoh_front::serve(
+            service,
+            cfg,
+            instance,
+            async move {
+                let _ = shutdown_rx.await;
+            },
+        ))
     });
     let iceoryx2_ended = async {
         match iceoryx2_done {
@@ -231,12 +236,35 @@ pub fn run(args: ServeArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(transport::zenoh::instances::default_instance_id);
         transport::zenoh::instances::check_instance_id(&instance)?;
-        let config = transport::zenoh::config(
-            transport::zenoh::Mode::Peer,
+        // Without a file: a peer when it listens itself, else a client of the router it
+        // connects to. Peers behind a router do not see each other's liveliness tokens
+        // (Zenoh expects peers to mesh directly), and the instances must see each other to
+        // share the vehicles of plain-key clients (docs/deploy.md, "Scaling out").
+        let mode = if args.zenoh_listen.is_empty() {
+            transport::zenoh::Mode::Client
+        } else {
+            transport::zenoh::Mode::Peer
+        };
+        let mut config = transport::zenoh::config(
+            mode,
             args.zenoh_config.as_deref(),
             &args.zenoh_listen,
             &args.zenoh_connect,
         )?;
+        if args.zenoh_config.is_none() {
+            // As in the shipped planner files: a router drops a hung planner after its
+            // lease; and a client session, which fails at once when its router is not up
+            // yet, waits for it 30 s (then fails, so that systemd restarts the planner).
+            let mut settings = vec![("transport/link/tx", transport::zenoh::planner_lease().to_string())];
+            if mode == transport::zenoh::Mode::Client {
+                settings.push(("connect/timeout_ms", "30000".into()));
+            }
+            for (key, value) in settings {
+                config
+                    .insert_json5(key, &value)
+                    .map_err(|e| anyhow::anyhow!("zenoh configuration {key}: {e}"))?;
+            }
+        }
         Some((config, instance))
     } else {
         None
@@ -328,4 +356,3 @@ fn record_stats(recorder: PlanRecorder, stats: Arc<Stats>) -> (Arc<AtomicBool>, 
     });
     (stop, thread)
 }
-
