@@ -7,7 +7,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ConfigError;
 
+mod evidence;
 mod solver;
+pub use evidence::Evidence;
 pub use solver::{Backend, HighsOptionValue, LpSolver, SolverSettings};
 
 /// The complete planner configuration.
@@ -167,6 +169,9 @@ pub struct Prediction {
     pub p_keep_lat: f64,
     /// Branches below this probability are pruned.
     pub p_min: f64,
+    /// With a value above 0, a branch is also kept when it is at least this share as
+    /// probable as the most probable one (see `scenario::keep_threshold`).
+    pub p_min_relative: f64,
     /// At most this many branches are kept per SV (`K`).
     pub max_branches: usize,
     /// `|a|` below this is read as cruising when estimating an SV's `beta`, m/s^2.
@@ -186,6 +191,8 @@ pub struct Prediction {
     /// second half of a smooth lane change the lateral speed falls, and the constant-speed
     /// extrapolation puts the SV in the next lane 1.1-2.4 times sooner than it gets there.
     pub departure_speed_share: f64,
+    /// The first step's transition probabilities from the SV's evidence (`evidence.rs`).
+    pub evidence: Evidence,
     /// While a branch keeps the SV's measured longitudinal state it continues at the measured
     /// acceleration (stopping at zero speed), not at the state's representative one: a leader
     /// easing off at -1 m/s^2 is otherwise predicted at `ego.decel_mps2` (-3) in its most
@@ -201,14 +208,16 @@ impl Default for Prediction {
             p_keep_long: 0.8,
             p_keep_lat: 0.9,
             p_min: 0.15,
+            p_min_relative: 0.3,
             max_branches: 4,
             accel_dead_band_mps2: 0.3,
             noise_diag: [0.25, 0.04, 0.25],
             epsilon: 0.05,
-            lateral_velocity_threshold_mps: 0.2,
+            lateral_velocity_threshold_mps: 0.0,
             lateral_departure: LateralDeparture::Always,
             departure_speed_share: 0.75,
             measured_accel_while_keeping: true,
+            evidence: Evidence::default(),
         }
     }
 }
@@ -455,6 +464,12 @@ impl PlannerConfig {
         }
         if p.max_branches == 0 {
             return bad("prediction.max_branches", "must be at least 1");
+        }
+        if !(0.0..=1.0).contains(&p.p_min_relative) {
+            return bad("prediction.p_min_relative", "must be in [0, 1]");
+        }
+        if let Some((field, why)) = p.evidence.invalid() {
+            return bad(field, why);
         }
         if p.noise_diag.iter().any(|q| !(q.is_finite() && *q >= 0.0)) {
             return bad("prediction.noise_diag", "must be finite and non-negative");

@@ -5,9 +5,11 @@
 //! known. With fixed accelerations (the discrete maps) every slack then has a closed-form
 //! optimal value. With the continuous input `u`, what is left is a small LP over the
 //! accelerations of the fixed sequence (at most `H` of them, bounded by their states); it is
-//! written from the rollout directly, independent of the MILP's encoding (`accel_lp.rs`), and
-//! solved by a dense simplex (`small_lp.rs`), or by HiGHS as the reference. Its accelerations are then scored by the closed form, so both paths share one
-//! definition of the cost.
+//! written from the rollout's safety rows (independent of the MILP's encoding) and the
+//! acceleration LP's one description, whose prices and slacks the MILP shares (`lp::accel`,
+//! `accel_lp.rs`), and solved by the dense simplex, or by HiGHS as the reference. Its
+//! accelerations are then scored by the closed form, so both paths share one definition of
+//! the cost.
 
 use crate::model::{rollout, Rollout};
 use crate::problem::Problem;

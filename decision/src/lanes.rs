@@ -17,6 +17,10 @@ impl LaneSet {
         LaneSet(self.0 | (1 << (lane - 1)))
     }
 
+    pub fn without(self, lane: u8) -> Self {
+        LaneSet(self.0 & !(1 << (lane - 1)))
+    }
+
     pub fn union(self, other: LaneSet) -> Self {
         LaneSet(self.0 | other.0)
     }

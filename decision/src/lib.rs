@@ -15,24 +15,27 @@ pub mod corpus;
 pub mod enumeration;
 pub mod error;
 pub mod evaluate;
+pub mod evidence;
 pub mod fallback;
 mod highs_cores;
 pub mod highs_solver;
 pub mod hysteresis;
 pub mod idm;
 pub mod lanes;
+pub mod lp;
 pub mod milp;
 pub mod model;
+pub mod plain_nominal;
 pub mod planner;
 pub mod problem;
 pub mod scenario;
-pub mod small_lp;
 pub mod types;
 pub mod validate;
 
 pub use config::{Backend, LateralDeparture, PlannerConfig};
 pub use error::{ConfigError, DecisionError, InputError, SolverError};
 pub use highs_solver::InterruptHandle;
+pub use plain_nominal::{classify_nominal, NominalClass};
 pub use planner::{fallback_only, Planner};
 pub use types::{
     Action, CorrectiveEntry, Decision, EgoState, Layer, Maneuver, PlanStep, PlannerMemory, Road, SetPoint, Situation,

@@ -4,6 +4,7 @@
 use super::*;
 use crate::corpus::{paper_classes, SituationGenerator};
 use crate::evaluate::{evaluate, Evaluation};
+use crate::highs_solver::MipStatus;
 use crate::problem::prepare;
 use crate::PlannerConfig;
 
@@ -101,29 +102,33 @@ fn the_same_holds_with_terminal_state_prices() {
 /// oracle).
 fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize) -> Vec<f64> {
     let mut x = vec![0.0; num_cols];
+    let mut set = |c: Col, v: f64| x[c.index()] = v;
     let r = &e.rollout;
+    let act = &cols.act;
     for s in 0..problem.horizon {
         let a = r.actions[s];
         match a.lateral {
-            -1 => x[cols.act[s][0]] = 1.0,
-            1 => x[cols.act[s][1]] = 1.0,
+            -1 => set(act.lane_left[s], 1.0),
+            1 => set(act.lane_right[s], 1.0),
             _ => {}
         }
         match a.longitudinal {
-            -1 => x[cols.act[s][2]] = 1.0,
-            1 => x[cols.act[s][3]] = 1.0,
+            -1 => set(act.beta_down[s], 1.0),
+            1 => set(act.beta_up[s], 1.0),
             _ => {}
         }
-        x[cols.lane[s][(r.maneuvers[s].lane - 1) as usize]] = 1.0;
-        x[cols.beta[s][(r.maneuvers[s].beta + 1) as usize]] = 1.0;
-        x[cols.accel[s]] = r.accel[s];
-        x[cols.speed_dev[s]] = (problem.desired_speed - r.v[s]).abs();
-        x[cols.brake[s]] = (-r.accel[s]).max(0.0);
-        x[cols.hard_brake[s]] = (problem.comfort_decel - r.accel[s]).max(0.0);
-        x[cols.firm_brake[s]] = (problem.firm_decel - r.accel[s]).max(0.0);
+        set(cols.lane[s][(r.maneuvers[s].lane - 1) as usize], 1.0);
+        set(cols.beta[s][(r.maneuvers[s].beta + 1) as usize], 1.0);
+        set(cols.accel[s], r.accel[s]);
+        let prices = &cols.prices[s];
+        set(prices.deviation, (problem.desired_speed - r.v[s]).abs());
+        let [brake, hard, firm] = prices.brakes;
+        set(brake, (-r.accel[s]).max(0.0));
+        set(hard, (problem.comfort_decel - r.accel[s]).max(0.0));
+        set(firm, (problem.firm_decel - r.accel[s]).max(0.0));
         for (l, o) in cols.occ[s].iter().enumerate() {
             if let Some(o) = *o {
-                x[o] = f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8)));
+                set(o, f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8))));
             }
         }
     }
@@ -136,20 +141,22 @@ fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize
     };
     for f in &cols.flows {
         let (from, to) = (state(f.chain, f.step.checked_sub(1)), state(f.chain, Some(f.step)));
-        x[f.col] = f64::from(u8::from(from == f.from && to == f.to));
+        set(f.col, f64::from(u8::from(from == f.from && to == f.to)));
     }
     for &(l, col) in &cols.seen {
         let lane = (l + 1) as u8;
-        x[col] = f64::from(u8::from(r.maneuvers.iter().any(|m| m.lane == lane)));
+        set(col, f64::from(u8::from(r.maneuvers.iter().any(|m| m.lane == lane))));
     }
-    for (idx, col) in cols.hys.iter().enumerate() {
+    // The evaluation's slacks are laid out `[sv * H + step]`.
+    let at = |cell: Cell| cell.sv * problem.horizon + cell.step;
+    for (cell, col) in cols.slacks.hysteresis.iter() {
         if let Some(col) = *col {
-            x[col] = e.hysteresis_slack[idx];
+            set(col, e.hysteresis_slack[at(cell)]);
         }
     }
-    for (idx, col) in cols.glob.iter().enumerate() {
+    for (cell, col) in cols.slacks.global.iter() {
         if let Some(col) = *col {
-            x[col] = e.global_slack[idx];
+            set(col, e.global_slack[at(cell)]);
         }
     }
     x
@@ -254,11 +261,39 @@ fn dense_relaxations_agree_with_highs() {
                 let Ok((model, _)) = build(&problem, mode) else {
                     continue;
                 };
-                let lp = branch::dense_relaxation(&model);
-                crate::small_lp::tests::agree_with(&lp, crate::small_lp::Pricing::SteepestEdge);
+                dense_relaxation_agrees_with_highs(&model);
                 solved += 1;
             }
         }
     }
     assert!(solved > 100, "{solved} relaxations");
+}
+
+/// The dense simplex's verdict on `model`'s relaxation is HiGHS's: the same optimal
+/// objective (relative 1e-7) at a point within the boxes and rows, or infeasible for both.
+fn dense_relaxation_agrees_with_highs(model: &MipModel) {
+    let lp = branch::dense_relaxation(model);
+    let dense = lp.solve_with(dense_lp::Pricing::SteepestEdge).expect("dense simplex");
+    let mut relaxed = model.clone();
+    relaxed.integer.iter_mut().for_each(|i| *i = false);
+    let highs = crate::highs_solver::with_thread_lp(|s| s.solve(&relaxed, None)).unwrap();
+    match (dense, highs.status) {
+        (dense_lp::LpOutcome::Optimal { x, objective }, MipStatus::Optimal) => {
+            let h = highs.objective;
+            assert!(
+                (objective - h).abs() <= 1e-7 * (1.0 + h.abs()),
+                "{objective} vs HiGHS {h}"
+            );
+            for (c, &v) in x.iter().enumerate() {
+                let (lo, hi) = lp.bounds(c);
+                assert!(v >= lo && v <= hi, "column {c} = {v} outside [{lo}, {hi}]");
+            }
+            for r in 0..lp.num_rows() {
+                let ((lo, hi), a) = (lp.row_bounds(r), lp.activity(r, &x));
+                assert!(a >= lo - 1e-9 && a <= hi + 1e-9, "row {r}: {a} outside [{lo}, {hi}]");
+            }
+        }
+        (dense_lp::LpOutcome::Infeasible, MipStatus::Infeasible) => {}
+        (d, h) => panic!("dense {d:?} vs HiGHS {h:?}"),
+    }
 }

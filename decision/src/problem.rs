@@ -3,9 +3,10 @@
 //! safety data of every SV.
 
 use crate::config::{CostWeights, LateralDeparture, PlannerConfig};
+use crate::evidence;
 use crate::hysteresis;
 use crate::idm::{hard_margin, idm_distance, linearised_margins, thresholds};
-use crate::lanes::{lanes_at, nearest_lane, LaneSet};
+use crate::lanes::{lanes_at, LaneSet};
 use crate::model::{rollout, EgoStart, Kinematics, Rollout};
 use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches_from, Branch};
 use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situation, SvObservation};
@@ -169,6 +170,8 @@ const FOLLOWING_MARGIN_MPS: f64 = 0.5;
 struct Context<'a> {
     config: &'a PlannerConfig,
     road: &'a Road,
+    /// The whole scene, for the SVs' evidence.
+    situation: &'a Situation,
     kin: Kinematics,
     start: EgoStart,
     desired_speed: f64,
@@ -208,6 +211,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
     let ctx = Context {
         config,
         road,
+        situation: s,
         kin,
         start,
         desired_speed: ego.desired_speed_mps,
@@ -347,8 +351,9 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         .map(|&var| hard_margin(d_idm, ctx.z, var))
         .collect();
     let sv_occ = lanes_at(road, sv.y_m, tol).expect("validated");
+    let heading = evidence::heading(config, road, sv);
     let sv_start = Maneuver {
-        lane: nearest_lane(road, sv.y_m).expect("validated"),
+        lane: heading.lane,
         beta: beta_from_accel(sv.a_mps2, config.prediction.accel_dead_band_mps2),
     };
     let measured = (
@@ -356,7 +361,11 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
         sv.v_mps,
         config.prediction.measured_accel_while_keeping.then_some(sv.a_mps2),
     );
-    let mut branches = predict_branches_from(config, &ctx.kin, road.lanes, sv_start, measured, sv_occ);
+    let first = evidence::first_step(config, road, &ctx.situation.ego, &ctx.situation.svs, sv);
+    let mut branches = predict_branches_from(config, &ctx.kin, road.lanes, sv_start, measured, sv_occ, first);
+    if first.is_some() && config.prediction.lateral_departure == LateralDeparture::Always {
+        evidence::depart(config, road, sv, heading, &mut branches);
+    }
     let departing = predict_lateral_motion(config, road, sv, sv_start.lane, &mut branches);
     let mean_x: Vec<f64> = (0..horizon)
         .map(|h| branches.iter().map(|b| b.probability * b.x[h]).sum())

@@ -3,6 +3,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use crate::config::PlannerConfig;
+use crate::evidence::FirstStep;
 use crate::lanes::LaneSet;
 use crate::model::{action_set, transition, Kinematics};
 use crate::types::{Action, Beta, Maneuver};
@@ -34,22 +35,28 @@ pub fn beta_from_accel(a: f64, dead_band: f64) -> Beta {
 
 /// One-step probabilities of the admissible actions from `m`: lateral and longitudinal keep
 /// probabilities, the remainder split evenly over the admissible neighbours, the product
-/// restricted to the action set and renormalised.
-pub fn action_probabilities(config: &PlannerConfig, m: Maneuver, lanes: u8) -> Vec<(Action, Maneuver, f64)> {
+/// restricted to the action set and renormalised. With `first`, the step's lane changes and
+/// braking have the evidence's probabilities instead ([`crate::evidence`]).
+pub fn action_probabilities(
+    config: &PlannerConfig,
+    m: Maneuver,
+    lanes: u8,
+    first: Option<&FirstStep>,
+) -> Vec<(Action, Maneuver, f64)> {
     let p = &config.prediction;
-    let lateral = |d: i8| {
-        if d == 0 {
-            p.p_keep_lat
-        } else {
-            (1.0 - p.p_keep_lat) / 2.0
-        }
+    let lateral = |d: i8| match (d, first) {
+        (-1, Some(f)) => f.left,
+        (1, Some(f)) => f.right,
+        (0, Some(f)) => 1.0 - f.left - f.right,
+        (0, None) => p.p_keep_lat,
+        _ => (1.0 - p.p_keep_lat) / 2.0,
     };
-    let longitudinal = |d: i8| {
-        if d == 0 {
-            p.p_keep_long
-        } else {
-            (1.0 - p.p_keep_long) / 2.0
-        }
+    let change = (1.0 - p.p_keep_long) / 2.0;
+    let longitudinal = |d: i8| match (d, first) {
+        (-1, Some(f)) => f.brake,
+        (0, Some(f)) => 1.0 - f.brake - change,
+        (0, None) => p.p_keep_long,
+        _ => change,
     };
     let mut out: Vec<(Action, Maneuver, f64)> = action_set(config.ego.combined_actions)
         .iter()
@@ -58,9 +65,16 @@ pub fn action_probabilities(config: &PlannerConfig, m: Maneuver, lanes: u8) -> V
         })
         .collect();
     let total: f64 = out.iter().map(|(_, _, w)| w).sum();
+    if first.is_some() && total <= 0.0 {
+        // The evidence is certain of an action the state does not admit (a change off the
+        // road): the background probabilities decide.
+        return action_probabilities(config, m, lanes, None);
+    }
     for entry in &mut out {
         entry.2 /= total;
     }
+    // Certain evidence leaves actions of probability zero: they are no branch.
+    out.retain(|entry| entry.2 > 0.0);
     out
 }
 
@@ -76,11 +90,12 @@ pub fn predict_branches(
     v0: f64,
     occupancy0: LaneSet,
 ) -> Vec<Branch> {
-    predict_branches_from(config, kin, lanes, start, (x0, v0, None), occupancy0)
+    predict_branches_from(config, kin, lanes, start, (x0, v0, None), occupancy0, None)
 }
 
 /// [`predict_branches`] from a measured `(x, v, a)`: with `a` given, the branch steps that
-/// keep the start's longitudinal state continue at `a` (stopping at zero speed).
+/// keep the start's longitudinal state continue at `a` (stopping at zero speed); with
+/// `first`, the first step follows the evidence.
 pub fn predict_branches_from(
     config: &PlannerConfig,
     kin: &Kinematics,
@@ -88,6 +103,7 @@ pub fn predict_branches_from(
     start: Maneuver,
     (x0, v0, a0): (f64, f64, Option<f64>),
     occupancy0: LaneSet,
+    first: Option<FirstStep>,
 ) -> Vec<Branch> {
     let horizon = config.timing.horizon;
     let mut current = Branch {
@@ -117,6 +133,7 @@ pub fn predict_branches_from(
         current: &mut Branch,
         search: &mut Search,
     ) {
+        let first = if current.actions.is_empty() { search.first } else { None };
         if left == 0 {
             match &mut search.leaves {
                 Some(leaves) => leaves.push(current.clone()),
@@ -124,7 +141,7 @@ pub fn predict_branches_from(
             }
             return;
         }
-        for (d, next, p) in action_probabilities(config, m, lanes) {
+        for (d, next, p) in action_probabilities(config, m, lanes, first.as_ref()) {
             if current.probability * p < search.floor {
                 continue;
             }
@@ -177,21 +194,24 @@ pub fn predict_branches_from(
     let mut most_probable = Search {
         floor: 0.0,
         leaves: None,
+        first,
     };
     run(&mut most_probable);
+    let best = most_probable.floor;
+    let threshold = keep_threshold(config, best);
     let mut keepable = Search {
-        floor: most_probable.floor.min(config.prediction.p_min),
+        floor: best.min(threshold),
         leaves: Some(Vec::new()),
+        first,
     };
     run(&mut keepable);
     let mut leaves = keepable.leaves.unwrap_or_default();
     // Stable sort keeps action-set order among equal probabilities.
     leaves.sort_by(|a, b| b.probability.total_cmp(&a.probability));
-    let p_min = config.prediction.p_min;
     let mut kept: Vec<Branch> = leaves
         .iter()
         .enumerate()
-        .filter(|(i, b)| *i == 0 || b.probability >= p_min)
+        .filter(|(i, b)| *i == 0 || b.probability >= threshold)
         .map(|(_, b)| b.clone())
         .take(config.prediction.max_branches)
         .collect();
@@ -208,6 +228,22 @@ struct Search {
     floor: f64,
     /// Where leaves are collected; `None` while searching for the most probable leaf.
     leaves: Option<Vec<Branch>>,
+    /// The first step's evidence.
+    first: Option<FirstStep>,
+}
+
+/// Leaves at or above this probability are kept (besides the most probable one, `best`):
+/// `p_min`, or with `p_min_relative` the lower of `p_min` and that share of `best`. Every leaf
+/// of a horizon shares the later steps' background factors, so the relative rule keeps the
+/// branches the evidence makes likely at any horizon, where `p_min` alone keeps only the
+/// most probable one beyond a few steps.
+fn keep_threshold(config: &PlannerConfig, best: f64) -> f64 {
+    let p = &config.prediction;
+    if p.p_min_relative > 0.0 {
+        p.p_min.min(p.p_min_relative * best)
+    } else {
+        p.p_min
+    }
 }
 
 /// One step at constant acceleration `a`, or to a standstill within the step.
@@ -261,14 +297,14 @@ mod tests {
         let c = PlannerConfig::default();
         // Middle lane of 3, cruising: weights keep 0.9*0.8 = 0.72, left/right 0.05*0.8 = 0.04,
         // decel/accel 0.9*0.1 = 0.09; total 0.98.
-        let probs = action_probabilities(&c, Maneuver { lane: 2, beta: 0 }, 3);
+        let probs = action_probabilities(&c, Maneuver { lane: 2, beta: 0 }, 3, None);
         assert_eq!(probs.len(), 5);
         assert!((probs[0].2 - 0.72 / 0.98).abs() < 1e-12);
         assert!((probs[1].2 - 0.04 / 0.98).abs() < 1e-12);
         assert!((probs[3].2 - 0.09 / 0.98).abs() < 1e-12);
         // Lane 1 of 2, accelerating: left and accelerate are clipped; keep 0.72, right 0.04,
         // decel 0.09; total 0.85.
-        let probs = action_probabilities(&c, Maneuver { lane: 1, beta: 1 }, 2);
+        let probs = action_probabilities(&c, Maneuver { lane: 1, beta: 1 }, 2, None);
         assert_eq!(probs.len(), 3);
         assert!((probs[0].2 - 0.72 / 0.85).abs() < 1e-12);
         let sum: f64 = probs.iter().map(|p| p.2).sum();
@@ -289,6 +325,7 @@ mod tests {
             Maneuver { lane: 2, beta: -1 },
             (0.0, 20.0, Some(-1.0)),
             LaneSet::single(2),
+            None,
         );
         let keep = b.iter().find(|x| x.actions.iter().all(|a| *a == Action::KEEP)).unwrap();
         let dt = k.dt;
@@ -455,7 +492,7 @@ mod tests {
                 continue;
             }
             let mut children = Vec::new();
-            for (d, next, p) in action_probabilities(c, m, lanes) {
+            for (d, next, p) in action_probabilities(c, m, lanes, None) {
                 let kept = a.filter(|_| d.longitudinal == 0);
                 let (x1, v1) = match kept {
                     Some(a) => step_to_standstill(k.dt, x, v, a),
@@ -507,7 +544,7 @@ mod tests {
                                 for s0 in [(0.0, 20.0, None), (5.0, 0.5, Some(-1.0)), (0.0, 12.0, Some(0.4))] {
                                     let start = Maneuver { lane, beta };
                                     let occ = LaneSet::single(lane);
-                                    let pruned = predict_branches_from(&c, &k, lanes, start, s0, occ);
+                                    let pruned = predict_branches_from(&c, &k, lanes, start, s0, occ, None);
                                     assert_eq!(
                                         pruned,
                                         full_tree(&c, &k, lanes, start, s0),

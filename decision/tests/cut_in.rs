@@ -5,9 +5,9 @@
 use decision::{EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation};
 
 /// Three lanes 4 m wide (lane 3 at y = 0); the ego in lane 3 at 36.7 m/s, accelerating; an SV
-/// 28 m/s, `dx` ahead, half way between lanes 1 and 2 and moving right at 2.5 m/s: the lateral
-/// prediction puts it into the ego's lane at the second step, deep inside the ego's IDM
-/// distance (about 150 m).
+/// 28 m/s, `dx` ahead, at lane 2's centre and moving right at 2.5 m/s: the tree's lane-change
+/// branch (near certain at that lateral speed) puts it into the ego's lane from the first
+/// step, deep inside the ego's IDM distance (about 150 m), not now.
 fn cut_in(dx: f64, beta: i8) -> Situation {
     Situation {
         road: Road {
@@ -24,7 +24,7 @@ fn cut_in(dx: f64, beta: i8) -> Situation {
         },
         svs: vec![SvObservation {
             vy_mps: -2.5,
-            ..SvObservation::new(2, dx, 5.8, 28.0, 0.0)
+            ..SvObservation::new(2, dx, 3.95, 28.0, 0.0)
         }],
         memory: PlannerMemory::default(),
     }
@@ -37,7 +37,7 @@ fn decide(recovery: f64, s: &Situation) -> decision::Decision {
 }
 
 #[test]
-fn a_cut_in_two_steps_away_is_recovered_by_comfortable_braking() {
+fn a_cut_in_a_step_away_is_recovered_by_comfortable_braking() {
     for beta in [1, 0, -1] {
         let s = cut_in(43.0, beta);
         let d = decide(PlannerConfig::default().idm.violation_recovery_mps2, &s);

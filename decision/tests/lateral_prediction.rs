@@ -1,7 +1,9 @@
-//! The lateral prediction of an SV moving sideways (`prediction.lateral_velocity_threshold_mps`,
-//! `prediction.lateral_departure`): a drifting SV enters the ego's lane in the prediction
-//! before it leaves its own lane centre, and an SV leaving the ego's lane leaves it in the
-//! prediction once its extrapolated position reaches the next lane centre.
+//! The lateral extrapolation of an SV moving sideways (`prediction.lateral_velocity_threshold_mps`,
+//! `prediction.lateral_departure`), the prediction without evidence in the tree: a drifting
+//! SV enters the ego's lane in the prediction before it leaves its own lane centre, and an SV
+//! leaving the ego's lane leaves it in the prediction once its extrapolated position reaches
+//! the next lane centre. (With the evidence, the default, the tree's lane-change branch does
+//! this: tests/scenario_tree.rs.)
 
 use decision::config::LateralDeparture;
 use decision::lanes::LaneSet;
@@ -45,8 +47,16 @@ fn predicted_lanes(config: &PlannerConfig, s: &Situation) -> (Vec<LaneSet>, Vec<
     (sv.branches[0].occupancy.clone(), sv.mean_occupancy.clone())
 }
 
-fn with_departure(departure: LateralDeparture) -> PlannerConfig {
+/// The extrapolation instead of the evidence.
+fn extrapolating() -> PlannerConfig {
     let mut config = PlannerConfig::default();
+    config.prediction.evidence.enabled = false;
+    config.prediction.lateral_velocity_threshold_mps = 0.2;
+    config
+}
+
+fn with_departure(departure: LateralDeparture) -> PlannerConfig {
+    let mut config = extrapolating();
     config.prediction.lateral_departure = departure;
     config.prediction.departure_speed_share = 0.5;
     config
@@ -102,7 +112,7 @@ fn a_drifting_sv_enters_the_egos_lane_before_it_leaves_its_own_centre() {
 
 #[test]
 fn below_the_threshold_an_sv_keeps_its_lane() {
-    let config = PlannerConfig::default();
+    let config = extrapolating();
     let slow = config.prediction.lateral_velocity_threshold_mps * 0.5;
     let (hard, band) = predicted_lanes(&config, &situation(8.0, -slow));
     assert_eq!((hard, band), (vec![LANE_1; 3], vec![LANE_1; 3]));

@@ -9,10 +9,9 @@ use bincode::config::{Configuration, Fixint, Limit, LittleEndian};
 use bincode::error::DecodeError;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
-use thiserror::Error;
 
+use crate::error::{clear_refusal, WireError};
 use crate::messages::{PlanRequest, PlanResponse, PROTOCOL_VERSION};
-use crate::serde_util::CAPACITY_MARK;
 
 /// Upper bound on a message (bincode or JSON), bytes; the largest valid message is far smaller.
 pub const MAX_MESSAGE_BYTES: usize = 64 * 1024;
@@ -23,49 +22,11 @@ pub const BINCODE_CONFIG: Configuration<LittleEndian, Fixint, Limit<MAX_MESSAGE_
     .with_fixed_int_encoding()
     .with_limit::<MAX_MESSAGE_BYTES>();
 
-/// Why bytes could not be decoded into a message.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-pub enum WireError {
-    /// The input ends before the message does.
-    #[error("input is truncated")]
-    Truncated,
-    /// The message ends before the input does.
-    #[error("{extra} trailing bytes after the message")]
-    TrailingBytes { extra: usize },
-    /// The input is not a message of this protocol.
-    #[error("malformed message: {0}")]
-    Malformed(String),
-    /// The message carries another protocol version.
-    #[error("unsupported protocol version {found} (this build speaks version {supported})")]
-    UnsupportedVersion { found: u16, supported: u16 },
-    /// A list or string holds more than its capacity.
-    #[error("capacity exceeded: {0}")]
-    CapacityExceeded(String),
-    /// An enum code or name that the protocol does not define.
-    #[error("unknown enum value: {0}")]
-    UnknownEnumValue(String),
-}
-
-impl WireError {
-    fn unsupported(found: u16) -> Self {
-        WireError::UnsupportedVersion {
-            found,
-            supported: PROTOCOL_VERSION,
-        }
-    }
-
-    /// Classifies a serde error message (ours or serde's own wording) by how it starts: the
-    /// rest may quote the input, which must not pick the error.
-    fn from_message(msg: String) -> Self {
-        if msg.starts_with(CAPACITY_MARK) {
-            WireError::CapacityExceeded(msg)
-        } else if msg.starts_with("unknown variant")
-            || (msg.starts_with("invalid value: integer") && msg.contains("expected variant index"))
-        {
-            WireError::UnknownEnumValue(msg)
-        } else {
-            WireError::Malformed(msg)
-        }
+/// Another protocol version than this build's.
+fn unsupported(found: u16) -> WireError {
+    WireError::UnsupportedVersion {
+        found,
+        supported: PROTOCOL_VERSION,
     }
 }
 
@@ -108,13 +69,14 @@ pub fn decode_bincode<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
     };
     let version = u16::from_le_bytes([lo, hi]);
     if version != PROTOCOL_VERSION {
-        return Err(WireError::unsupported(version));
+        return Err(unsupported(version));
     }
+    clear_refusal();
     let (message, read): (T, usize) =
         bincode::serde::borrow_decode_from_slice(bytes, BINCODE_CONFIG).map_err(|e| match e {
             DecodeError::UnexpectedEnd { .. } => WireError::Truncated,
-            DecodeError::OtherString(msg) => WireError::from_message(msg),
-            DecodeError::Other(msg) => WireError::from_message(msg.to_owned()),
+            DecodeError::OtherString(msg) => WireError::from_decoder(msg),
+            DecodeError::Other(msg) => WireError::from_decoder(msg.to_owned()),
             other => WireError::Malformed(other.to_string()),
         })?;
     if read < bytes.len() {
@@ -167,13 +129,14 @@ pub fn decode_json<T: WireMessage>(bytes: &[u8]) -> Result<T, WireError> {
     match value.get("version").map(serde_json::Value::as_u64) {
         Some(Some(v)) if v != u64::from(PROTOCOL_VERSION) => {
             return Err(match u16::try_from(v) {
-                Ok(found) => WireError::unsupported(found),
+                Ok(found) => unsupported(found),
                 Err(_) => WireError::Malformed(format!("version {v} is not a u16")),
             })
         }
         _ => {}
     }
-    serde_json::from_value(value).map_err(|e| WireError::from_message(e.to_string()))
+    clear_refusal();
+    serde_json::from_value(value).map_err(|e| WireError::from_decoder(e.to_string()))
 }
 
 /// Decodes one JSON message from a string.

@@ -13,6 +13,8 @@ use core::fmt;
 use serde::de::{self, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::error::{refuse, Failure};
+
 /// Generates a `#[repr(u8)]` wire enum with explicit codes and names, its serde impls, and a
 /// serde adapter module for a `u8` field holding its code.
 macro_rules! wire_enum {
@@ -98,15 +100,19 @@ macro_rules! wire_enum {
                         write!(f, "a {} name or code", stringify!($name))
                     }
                     fn visit_str<E: de::Error>(self, v: &str) -> Result<$name, E> {
-                        $name::from_name(v).ok_or_else(|| E::unknown_variant(v, $name::NAMES))
+                        $name::from_name(v).ok_or_else(|| refuse(
+                            Failure::UnknownEnum,
+                            format_args!("unknown variant `{v}` of {}, expected one of {:?}", stringify!($name), $name::NAMES),
+                        ))
                     }
                     fn visit_u64<E: de::Error>(self, v: u64) -> Result<$name, E> {
                         u8::try_from(v)
                             .ok()
                             .and_then($name::from_code)
-                            .ok_or_else(|| E::custom(format_args!(
-                                "unknown variant code {v} for {}", stringify!($name)
-                            )))
+                            .ok_or_else(|| refuse(
+                                Failure::UnknownEnum,
+                                format_args!("unknown variant code {v} for {}", stringify!($name)),
+                            ))
                     }
                 }
                 if deserializer.is_human_readable() {
@@ -157,7 +163,7 @@ wire_enum! {
 
 wire_enum! {
     /// Why a request was rejected. Codes 1..=9 are found on the wire alone
-    /// ([`PlanRequest::validate`](crate::PlanRequest::validate)), 10..=29 mirror the decision
+    /// ([`PlanRequest::check_wire`](crate::PlanRequest::check_wire)), 10..=29 mirror the decision
     /// core's input checks one to one, 30.. are conditions of the service.
     RejectReason, code module reject_reason_code {
         /// The request carries another protocol version; `field` is `version`.

@@ -1,10 +1,9 @@
 //! The two encodings as one value, and what can be read from a message that does not decode
 //! (its ids, the list over capacity): the header knowledge lives here, next to the layout.
 
-use crate::codec::{
-    decode_bincode, decode_json, encode_bincode, encode_json, WireError, WireMessage, MAX_MESSAGE_BYTES,
-};
+use crate::codec::{decode_bincode, decode_json, encode_bincode, encode_json, WireMessage, MAX_MESSAGE_BYTES};
 use crate::enums::RejectReason;
+use crate::error::WireError;
 use crate::messages::{PlanRequest, Rejected, MAX_CORRECTIVE, MAX_HORIZON, MAX_SVS};
 
 /// How a message body is encoded (a transport's encoding field says which).

@@ -11,11 +11,13 @@ use iceoryx2_bb_container::string::{StaticString, String as _};
 use iceoryx2_bb_container::vector::{StaticVec, Vector};
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+use serde::de::{self, EnumAccess, VariantAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::enums::{layer_code, reject_reason_code, Layer, RejectReason};
+use crate::error::{refuse, Failure, WireError};
 use crate::serde_util::{bounded_str, bounded_vec, signature_bytes};
-use crate::WireError;
+use crate::signature::Signature;
 
 /// Version of the wire contract. Carried first in every message and in the iceoryx2
 /// `type_name` of the payloads (`.../v3`).
@@ -183,7 +185,7 @@ pub struct PlanRequest {
     pub deadline_us: u32,
     /// When the request was sent, ns since the Unix epoch on a clock the vehicle and the
     /// planner share; 0 = unknown. The planner answers a request older than its deadline on
-    /// arrival as stale ([`crate::staleness`]). Optional in JSON.
+    /// arrival as stale ([`PlanRequest::is_stale_at`]). Optional in JSON.
     #[serde(default)]
     pub sent_at_ns: u64,
     pub road: Road,
@@ -468,21 +470,62 @@ impl Serialize for Outcome {
     }
 }
 
-/// Decoding helper only: lives for one call on the stack, never in a message.
-#[derive(Deserialize)]
-#[serde(rename = "Outcome", rename_all = "snake_case")]
-#[allow(clippy::large_enum_variant)]
-enum OutcomeDe {
-    Decided(Decided),
-    Rejected(Rejected),
+/// The variant of an [`Outcome`] being decoded: its name (JSON) or index (bincode); an
+/// unknown one is a typed refusal.
+enum OutcomeTag {
+    Decided,
+    Rejected,
+}
+
+impl<'de> Deserialize<'de> for OutcomeTag {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = OutcomeTag;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str("`decided` or `rejected` (variant 0 or 1)")
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<OutcomeTag, E> {
+                match v {
+                    0 => Ok(OutcomeTag::Decided),
+                    1 => Ok(OutcomeTag::Rejected),
+                    _ => Err(refuse(
+                        Failure::UnknownEnum,
+                        format_args!("unknown Outcome variant {v}"),
+                    )),
+                }
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<OutcomeTag, E> {
+                match v {
+                    "decided" => Ok(OutcomeTag::Decided),
+                    "rejected" => Ok(OutcomeTag::Rejected),
+                    _ => Err(refuse(
+                        Failure::UnknownEnum,
+                        format_args!("unknown Outcome variant `{v}`"),
+                    )),
+                }
+            }
+        }
+        deserializer.deserialize_identifier(V)
+    }
 }
 
 impl<'de> Deserialize<'de> for Outcome {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        Ok(match OutcomeDe::deserialize(deserializer)? {
-            OutcomeDe::Decided(d) => Outcome::decided(d),
-            OutcomeDe::Rejected(r) => Outcome::rejected(r),
-        })
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Outcome;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str("an Outcome: `decided` or `rejected` with its body")
+            }
+            fn visit_enum<A: EnumAccess<'de>>(self, data: A) -> Result<Outcome, A::Error> {
+                Ok(match data.variant()? {
+                    (OutcomeTag::Decided, body) => Outcome::decided(body.newtype_variant()?),
+                    (OutcomeTag::Rejected, body) => Outcome::rejected(body.newtype_variant()?),
+                })
+            }
+        }
+        deserializer.deserialize_enum("Outcome", &["decided", "rejected"], V)
     }
 }
 
@@ -504,7 +547,7 @@ pub struct PlanResponse {
     pub queue_us: u32,
     pub outcome: Outcome,
     /// Ed25519 signature of the bincode encoding of every field before it; all zeros =
-    /// unsigned ([`crate::signing`]). Last so that the signed bytes are a prefix of the
+    /// unsigned ([`crate::ResponseSigner`]). Last so that the signed bytes are a prefix of the
     /// encoding. Optional in JSON.
     #[serde(with = "signature_bytes", default)]
     pub signature: Signature,
@@ -535,30 +578,6 @@ impl PlanResponse {
             outcome: Outcome::rejected(rejected),
             signature: Signature::UNSIGNED,
         }
-    }
-}
-
-/// Length of an Ed25519 signature, bytes.
-pub const SIGNATURE_LENGTH: usize = 64;
-
-/// The signature of a [`PlanResponse`]: 64 bytes, all zeros when unsigned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("hmdp::Signature/v3")]
-#[repr(C)]
-pub struct Signature(pub [u8; SIGNATURE_LENGTH]);
-
-impl Signature {
-    /// No signature.
-    pub const UNSIGNED: Self = Self([0; SIGNATURE_LENGTH]);
-
-    pub fn is_unsigned(&self) -> bool {
-        *self == Self::UNSIGNED
-    }
-}
-
-impl Default for Signature {
-    fn default() -> Self {
-        Self::UNSIGNED
     }
 }
 

@@ -3,7 +3,7 @@
 //! `StaticVec` and `StaticString` ship serde impls in iceoryx2-bb-container 0.10, but their
 //! errors cannot be told apart from other failures and `StaticString` panics when asked to
 //! serialize bytes that are not UTF-8. These adapters keep the same wire form (a sequence of
-//! the live elements, a string) with errors the codecs classify and no panics.
+//! the live elements, a string) with typed refusals ([`crate::error::refuse`]) and no panics.
 
 use core::fmt;
 use core::marker::PhantomData;
@@ -13,10 +13,7 @@ use iceoryx2_bb_container::vector::{StaticVec, Vector};
 use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-/// Every capacity error message starts with this phrase; [`crate::codec`] maps it to
-/// [`crate::WireError::CapacityExceeded`]. A prefix, not a substring: a message may quote the
-/// sender's input (an unknown field's name), which must not choose the error.
-pub(crate) const CAPACITY_MARK: &str = "capacity exceeded:";
+use crate::error::{refuse, Failure};
 
 /// `StaticVec<T, N>` as a sequence of its live elements; more than `N` is an error.
 pub(crate) mod bounded_vec {
@@ -48,17 +45,19 @@ pub(crate) mod bounded_vec {
             // bincode announces the length up front: refuse before reading any element.
             if let Some(len) = seq.size_hint() {
                 if len > N {
-                    return Err(de::Error::custom(format_args!(
-                        "{CAPACITY_MARK} a list of {len} elements, at most {N}"
-                    )));
+                    return Err(refuse(
+                        Failure::Capacity,
+                        format_args!("a list of {len} elements, at most {N}"),
+                    ));
                 }
             }
             let mut out = StaticVec::<T, N>::new();
             while let Some(element) = seq.next_element()? {
                 if out.push(element).is_err() {
-                    return Err(de::Error::custom(format_args!(
-                        "{CAPACITY_MARK} a list of more than {N} elements"
-                    )));
+                    return Err(refuse(
+                        Failure::Capacity,
+                        format_args!("a list of more than {N} elements"),
+                    ));
                 }
             }
             Ok(out)
@@ -92,10 +91,10 @@ pub(crate) mod bounded_str {
 
         fn visit_str<E: de::Error>(self, v: &str) -> Result<Self::Value, E> {
             if v.len() > N {
-                return Err(E::custom(format_args!(
-                    "{CAPACITY_MARK} a string of {} bytes, at most {N}",
-                    v.len()
-                )));
+                return Err(refuse(
+                    Failure::Capacity,
+                    format_args!("a string of {} bytes, at most {N}", v.len()),
+                ));
             }
             if !v.bytes().all(|b| (1..128).contains(&b)) {
                 return Err(E::custom("string contains non-ASCII or NUL characters"));
@@ -109,7 +108,7 @@ pub(crate) mod bounded_str {
 /// 128 lowercase hex digits in human-readable ones, the empty string when unsigned.
 pub(crate) mod signature_bytes {
     use super::*;
-    use crate::messages::{Signature, SIGNATURE_LENGTH};
+    use crate::signature::{Signature, SIGNATURE_LENGTH};
     use serde::ser::SerializeTuple;
 
     pub fn serialize<S: Serializer>(signature: &Signature, serializer: S) -> Result<S::Ok, S::Error> {
@@ -117,8 +116,7 @@ pub(crate) mod signature_bytes {
             if signature.is_unsigned() {
                 return serializer.serialize_str("");
             }
-            let hex: String = signature.0.iter().map(|b| format!("{b:02x}")).collect();
-            serializer.serialize_str(&hex)
+            serializer.serialize_str(&crate::signature::to_hex(&signature.0))
         } else {
             let mut tuple = serializer.serialize_tuple(SIGNATURE_LENGTH)?;
             for byte in &signature.0 {
@@ -149,7 +147,7 @@ pub(crate) mod signature_bytes {
             if v.is_empty() {
                 return Ok(Signature::UNSIGNED);
             }
-            crate::signing::parse_hex::<SIGNATURE_LENGTH>(v)
+            crate::signature::parse_hex::<SIGNATURE_LENGTH>(v)
                 .map(Signature)
                 .ok_or_else(|| E::invalid_value(de::Unexpected::Str(v), &self))
         }

@@ -13,7 +13,8 @@ use ed25519_dalek::{Signer, SigningKey, VerifyingKey};
 use thiserror::Error;
 
 use crate::codec::encode_bincode;
-use crate::messages::{PlanResponse, Signature, SIGNATURE_LENGTH};
+use crate::messages::PlanResponse;
+use crate::signature::{parse_hex, to_hex, Signature, SIGNATURE_LENGTH};
 
 /// Length of a key (secret seed or public key), bytes.
 pub const KEY_LENGTH: usize = 32;
@@ -131,25 +132,6 @@ impl ResponseVerifier {
     pub fn to_hex(&self) -> String {
         to_hex(self.key.as_bytes())
     }
-}
-
-/// Lowercase hex.
-pub fn to_hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// Exactly `2 * N` hex digits (either case) as `N` bytes.
-pub fn parse_hex<const N: usize>(text: &str) -> Option<[u8; N]> {
-    let text = text.as_bytes();
-    if text.len() != 2 * N {
-        return None;
-    }
-    let digit = |c: u8| (c as char).to_digit(16).map(|d| d as u8);
-    let mut out = [0u8; N];
-    for (byte, pair) in out.iter_mut().zip(text.chunks_exact(2)) {
-        *byte = digit(pair[0])? << 4 | digit(pair[1])?;
-    }
-    Some(out)
 }
 
 fn read_key(path: &Path) -> Result<[u8; KEY_LENGTH], KeyError> {

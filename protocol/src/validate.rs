@@ -48,7 +48,7 @@ impl PlanRequest {
     /// The checks the message alone allows: version, list lengths and the enum-like values
     /// (`beta`, previous actions in `-1..=1`). The rejection names the field, e.g.
     /// `(UnsupportedVersion, "version")`. A sender can run it before sending; the planner
-    /// runs it first in [`PlanRequest::validate`].
+    /// runs it first in `PlanRequest::validate`.
     pub fn check_wire(&self) -> Result<(), Rejected> {
         if self.version != PROTOCOL_VERSION {
             return Err(Rejected::new(RejectReason::UnsupportedVersion, "version"));

@@ -197,9 +197,9 @@ fn documented_layout_matches_the_encoder() {
         Ok(example_response())
     );
     // The documented example key signed the documented decision.
-    let key: [u8; 32] = signing::parse_hex(block("example-key")).unwrap();
+    let key: [u8; 32] = parse_hex(block("example-key")).unwrap();
     assert_eq!(key, [0x01; 32]);
-    let public: [u8; 32] = signing::parse_hex(block("example-public-key")).unwrap();
+    let public: [u8; 32] = parse_hex(block("example-public-key")).unwrap();
     assert_eq!(
         example_signer().verifier(),
         ResponseVerifier::from_bytes(&public).unwrap()

@@ -261,6 +261,7 @@ pub fn trial_spec(entry: &CampaignEntry, trial: u32, settings: &CampaignSettings
         duration_s: settings.duration_s,
         max_svs: settings.planner.perception.max_svs,
         record_trajectory: false,
+        audit_nominal: None,
     })
 }
 
@@ -306,6 +307,14 @@ pub struct GroupResult {
     pub collision_rate: f64,
     /// Nominal share of planner decisions (`None` for the IDM ego).
     pub nor: Option<f64>,
+    /// The nominal decisions against the plain MPC (the paper's MPC: no violation allowance,
+    /// band slack within `d_HS`).
+    #[serde(default)]
+    pub nominal_split: crate::metrics::NominalSplit,
+    /// Share of planner decisions the plain MPC makes nominally: the figure that compares
+    /// with the paper's NOR (`None` for the IDM ego).
+    #[serde(default)]
+    pub plain_nor: Option<f64>,
     /// Layer A share.
     pub gsrr: Option<f64>,
     /// Layer B share.
@@ -373,7 +382,7 @@ impl CampaignResults {
     }
 }
 
-fn ratio(a: u64, b: u64) -> f64 {
+pub(crate) fn ratio(a: u64, b: u64) -> f64 {
     if b == 0 {
         0.0
     } else {
@@ -393,6 +402,7 @@ pub fn aggregate<'a>(
     let mut trials = 0u64;
     let mut decisions = 0u64;
     let mut layers = LayerCounts::default();
+    let mut nominal_split = crate::metrics::NominalSplit::default();
     let mut collisions = 0u64;
     let mut simulated = 0.0;
     let mut speed_time = 0.0;
@@ -405,6 +415,7 @@ pub fn aggregate<'a>(
         trials += 1;
         decisions += m.decisions;
         layers.merge(&m.decisions_by_layer);
+        nominal_split.merge(&m.nominal_split);
         collisions += u64::from(m.collisions);
         simulated += m.simulated_s;
         speed_time += m.mean_speed_mps * m.simulated_s;
@@ -429,6 +440,8 @@ pub fn aggregate<'a>(
         collision_split: split,
         collision_rate: ratio(collisions, trials),
         nor: planner.then(|| ratio(layers.nominal, total)),
+        nominal_split,
+        plain_nor: planner.then(|| ratio(nominal_split.plain_feasible(), total)),
         gsrr: planner.then(|| ratio(layers.global_relaxation, total)),
         fbr: planner.then(|| ratio(layers.fallback, total)),
         solve_time: SolveTimeStats::from_us(&mut solve),
@@ -454,10 +467,11 @@ struct Worker<'s> {
 impl Worker<'_> {
     fn run(&mut self, item: &Item) -> Result<TrialOutcome> {
         let entry = &self.settings.entries[item.entry];
-        let spec = trial_spec(entry, item.trial, self.settings)?;
+        let mut spec = trial_spec(entry, item.trial, self.settings)?;
         let episode = match item.driver.planner_config(self.settings) {
             None => run_episode(&spec, Driver::IdmMobil)?,
             Some(config) => {
+                spec.audit_nominal = Some(config.clone());
                 let pos = match self.links.iter().position(|(d, _)| *d == item.driver) {
                     Some(p) => p,
                     None => {

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::campaign::{CampaignResults, DriverKind, GroupResult};
+use crate::campaign::{ratio, CampaignResults, DriverKind, GroupResult};
 use crate::error::Result;
 use crate::paper::{paper_row_for, PaperRow, PAPER_OVERALL};
 use crate::report::{create_dir, csv_bytes, json_bytes, pct, ttc_cell, write};
@@ -38,6 +38,12 @@ struct CsvRow {
     sv_sv_collisions: u64,
     collision_rate: f64,
     nor: String,
+    plain_nor: String,
+    nominal_plain: u64,
+    nominal_relaxed_by_choice: u64,
+    nominal_needed_allowance: u64,
+    nominal_needed_soft_band: u64,
+    nominal_needed_either: u64,
     gsrr: String,
     fbr: String,
     solve_mean_ms: f64,
@@ -81,6 +87,12 @@ fn csv_row(g: &GroupResult) -> CsvRow {
         sv_sv_collisions: g.collision_split.sv_sv,
         collision_rate: g.collision_rate,
         nor: opt(g.nor),
+        plain_nor: opt(g.plain_nor),
+        nominal_plain: g.nominal_split.plain,
+        nominal_relaxed_by_choice: g.nominal_split.relaxed_by_choice,
+        nominal_needed_allowance: g.nominal_split.needed_allowance,
+        nominal_needed_soft_band: g.nominal_split.needed_soft_band,
+        nominal_needed_either: g.nominal_split.needed_either,
         gsrr: opt(g.gsrr),
         fbr: opt(g.fbr),
         solve_mean_ms: g.solve_time.mean_ms,
@@ -130,17 +142,18 @@ fn paper_cells(g: &GroupResult) -> [String; 5] {
     }
 }
 
-const DRIVER_HEADER: &str = "| Driver | Trials | Collisions (at fault / hit in lane / SV-SV) | NOR | GSRR | FBR | \
+const DRIVER_HEADER: &str =
+    "| Driver | Trials | Collisions (at fault / hit in lane / SV-SV) | NOR | NOR, plain MPC | GSRR | FBR | \
      Mean speed (m/s) | Beta switches/min | Lane changes/min | Hard brakes/h | Min TTC p5 / p50 (s) | \
      TTC < 3 s | Headway < 1 s | Max DRAC (m/s^2) |";
-const DRIVER_RULE: &str = "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|";
+const DRIVER_RULE: &str = "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|";
 
 /// A group as a row of the driver tables.
 fn driver_row(g: &GroupResult) -> String {
     let c = &g.collision_split;
     let s = &g.safety;
     format!(
-        "| {} | {} | {} ({} / {} / {}) | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} | {} / {} | {} | {} | {:.2} |",
+        "| {} | {} | {} ({} / {} / {}) | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} | {} / {} | {} | {} | {:.2} |",
         g.driver.name(),
         g.trials,
         pct(g.collision_rate),
@@ -148,6 +161,7 @@ fn driver_row(g: &GroupResult) -> String {
         c.ego_hit_in_lane,
         c.sv_sv,
         opt_pct(g.nor),
+        opt_pct(g.plain_nor),
         opt_pct(g.gsrr),
         opt_pct(g.fbr),
         g.mean_speed_mps,
@@ -165,8 +179,8 @@ fn driver_row(g: &GroupResult) -> String {
 /// The paper's Table I figures in the driver table's columns (it reports nothing else).
 fn paper_driver_row(p: &PaperRow) -> String {
     format!(
-        "| paper (Table I) | {} | {:.2}% | {:.2}% | {:.2}% | {:.2}% | - | - | - | - | - | - | - | - |",
-        p.trials, p.collision_pct, p.nor_pct, p.gsrr_pct, p.fbr_pct
+        "| paper (Table I) | {} | {:.2}% | {:.2}% | {:.2}% | {:.2}% | {:.2}% | - | - | - | - | - | - | - | - |",
+        p.trials, p.collision_pct, p.nor_pct, p.nor_pct, p.gsrr_pct, p.fbr_pct
     )
 }
 
@@ -228,6 +242,7 @@ pub fn campaign_markdown(r: &CampaignResults) -> String {
     for g in &r.overall {
         let _ = writeln!(s, "{}", driver_row(g));
     }
+    nominal_table(&mut s, &r.overall);
     let _ = writeln!(
         s,
         "\n| Driver | Solve mean / p99 / max (ms) | Jerk RMS / max (m/s^3) | Min speed (m/s) |"
@@ -280,6 +295,37 @@ pub fn campaign_markdown(r: &CampaignResults) -> String {
          beta is the sign of its acceleration (dead band 0.3 m/s^2)."
     );
     s
+}
+
+/// How the nominal decisions of each planner driver stand against the plain MPC (the paper's:
+/// no violation allowance, band slack within `d_HS`), as shares of all its decisions.
+fn nominal_table(s: &mut String, groups: &[GroupResult]) {
+    let _ = writeln!(
+        s,
+        "\nNominal decisions against the plain MPC (the paper's MPC: no violation allowance, band slack \
+         within d_HS), shares of all decisions. `NOR, plain MPC` = plain + relaxed by choice: the \
+         figure that compares with the paper's NOR.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| Driver | NOR | plain | relaxed by choice | needed the allowance | needed the soft band | needed either |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for g in groups.iter().filter(|g| g.driver != DriverKind::IdmMobil) {
+        let share = |n: u64| pct(ratio(n, g.decisions_by_layer.total()));
+        let n = &g.nominal_split;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            g.driver.name(),
+            opt_pct(g.nor),
+            share(n.plain),
+            share(n.relaxed_by_choice),
+            share(n.needed_allowance),
+            share(n.needed_soft_band),
+            share(n.needed_either)
+        );
+    }
 }
 
 /// Writes `DIR/campaign/`: results.json, results.csv, results.md.

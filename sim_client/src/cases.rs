@@ -25,6 +25,7 @@ pub fn case1_spec(seed: u64, max_svs: usize) -> EpisodeSpec {
         duration_s: CASE_DURATION_S,
         max_svs,
         record_trajectory: true,
+        audit_nominal: None,
     }
 }
 
@@ -55,7 +56,10 @@ pub fn run_case_observed(
     seed: u64,
     observer: &mut dyn StepObserver,
 ) -> Result<CaseRun> {
-    let spec = case1_spec(seed, config.perception.max_svs);
+    let spec = EpisodeSpec {
+        audit_nominal: Some(config.clone()),
+        ..case1_spec(seed, config.perception.max_svs)
+    };
     let mut link = transport.connect(config.clone())?;
     let episode = run_episode_observed(&spec, Driver::Planner(link.as_mut()), observer)?;
     Ok(CaseRun {

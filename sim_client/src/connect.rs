@@ -11,6 +11,7 @@ use transport::zenoh::{ZenohChannel, ZenohTarget};
 use transport::PlanChannel;
 
 use crate::link::{InProcess, LinkError, LinkOptions, PlannerLink, RemoteLink};
+use crate::ros2_channel::Ros2Channel;
 
 /// Which transport carries requests to the planner.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -30,6 +31,11 @@ pub enum Transport {
     },
     /// A `planner serve` process over Zenoh (with the planner's public key, if any).
     Zenoh(ZenohTarget),
+    /// A `planner serve --ros2` node on the ROS 2 domain of `ROS_DOMAIN_ID`.
+    Ros2 {
+        /// The planner's public key (`--planner-key`): answers that do not verify are refused.
+        verifier: Option<ResponseVerifier>,
+    },
 }
 
 impl fmt::Display for Transport {
@@ -38,6 +44,7 @@ impl fmt::Display for Transport {
             Transport::InProcess => "inproc",
             Transport::Iceoryx2 { .. } => "iceoryx2",
             Transport::Zenoh(_) => "zenoh",
+            Transport::Ros2 { .. } => "ros2",
         })
     }
 }
@@ -76,6 +83,11 @@ impl Transport {
                 target,
                 options.ready_timeout,
                 options.deadline + options.answer_grace,
+            )?),
+            Transport::Ros2 { verifier } => Box::new(Ros2Channel::connect(
+                options.vehicle_id,
+                options.ready_timeout,
+                verifier.clone(),
             )?),
             Transport::Iceoryx2 { prefix, wait, verifier } => {
                 let client = ClientOptions {

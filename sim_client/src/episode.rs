@@ -51,6 +51,10 @@ pub struct EpisodeSpec {
     /// Record every vehicle's state after every low-level step, and the situation sent at
     /// every decision (for the figures).
     pub record_trajectory: bool,
+    /// Classify every nominal decision against the plain MPC of this configuration (the
+    /// driver's): no violation allowance, band slack within `d_HS`
+    /// ([`decision::classify_nominal`]), so that the nominal share compares with the paper's.
+    pub audit_nominal: Option<decision::PlannerConfig>,
 }
 
 /// One decision instant.
@@ -89,6 +93,9 @@ pub struct DecisionRecord {
     /// The request sent, ids and times aside (only with [`EpisodeSpec::record_trajectory`]).
     #[serde(skip)]
     pub request: Option<PlanRequest>,
+    /// A nominal decision against the plain MPC (only with [`EpisodeSpec::audit_nominal`]).
+    #[serde(skip)]
+    pub nominal_class: Option<decision::NominalClass>,
 }
 
 /// A list of ids as one CSV cell: `"2 5"`.
@@ -232,6 +239,18 @@ pub fn request_from(
     })
 }
 
+/// [`decision::classify_nominal`] of a nominal answer to `request`.
+fn classify(
+    config: &decision::PlannerConfig,
+    request: &PlanRequest,
+    planned: &crate::link::Planned,
+) -> Result<decision::NominalClass> {
+    let situation = decision::ValidSituation::new(config, &request.to_situation())
+        .map_err(|e| SimClientError::Config(format!("auditing a nominal decision: {e}")))?;
+    let plan: Vec<decision::Action> = planned.plan.iter().map(|s| s.action).collect();
+    Ok(decision::classify_nominal(config, &situation, &plan))
+}
+
 fn beta_of_acceleration(a: f64) -> i8 {
     if a > IDM_BETA_DEAD_BAND_MPS2 {
         1
@@ -259,17 +278,46 @@ fn record_states(world: &World, out: &mut Vec<VehicleState>) {
 }
 
 /// Sees (and may change) the world after its initial state and after every low-level step,
-/// before the step is scored: how a recording captures the ground truth and how a log replay
-/// puts the SVs on their recorded trajectories.
+/// before the step is scored, and sees every decision: how a recording captures the ground
+/// truth, how a log replay puts the SVs on their recorded trajectories and how the live view
+/// (`sim_client case1 --foxglove`) shows the run while it goes.
 pub trait StepObserver {
     /// Called with the world after step `world.step_index()`.
     fn after_step(&mut self, world: &mut World) -> Result<()>;
+
+    /// Called with every decision as it is taken, before the steps it commands.
+    fn after_decision(&mut self, _decision: &DecisionRecord) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// Observes nothing.
 impl StepObserver for () {
     fn after_step(&mut self, _world: &mut World) -> Result<()> {
         Ok(())
+    }
+}
+
+impl<T: StepObserver + ?Sized> StepObserver for &mut T {
+    fn after_step(&mut self, world: &mut World) -> Result<()> {
+        (**self).after_step(world)
+    }
+
+    fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
+        (**self).after_decision(decision)
+    }
+}
+
+/// Both observers, the first first (e.g. a recording and the live view).
+impl<A: StepObserver, B: StepObserver> StepObserver for (A, B) {
+    fn after_step(&mut self, world: &mut World) -> Result<()> {
+        self.0.after_step(world)?;
+        self.1.after_step(world)
+    }
+
+    fn after_decision(&mut self, decision: &DecisionRecord) -> Result<()> {
+        self.0.after_decision(decision)?;
+        self.1.after_decision(decision)
     }
 }
 
@@ -331,6 +379,12 @@ pub fn run_episode_observed(
                         decision.setpoint.accel_mps2,
                     )?;
                     let corrective_sv_ids = decision.memory.corrective.iter().map(|c| c.sv_id).collect();
+                    let nominal_class = match &spec.audit_nominal {
+                        Some(config) if decision.layer == Layer::Nominal => {
+                            Some(classify(config, &request, &decision)?)
+                        }
+                        _ => None,
+                    };
                     memory = decision.memory;
                     DecisionRecord {
                         index,
@@ -347,6 +401,7 @@ pub fn run_episode_observed(
                         plan: decision.plan,
                         solve_us: decision.solve_us,
                         request: spec.record_trajectory.then_some(request),
+                        nominal_class,
                     }
                 }
                 Driver::IdmMobil => DecisionRecord {
@@ -364,8 +419,10 @@ pub fn run_episode_observed(
                     plan: Vec::new(),
                     solve_us: 0,
                     request: None,
+                    nominal_class: None,
                 },
             };
+            observer.after_decision(&record)?;
             episode.decisions.push(record);
         }
         let collisions = world.step();

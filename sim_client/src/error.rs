@@ -30,6 +30,9 @@ pub enum SimClientError {
     /// An MCAP recording could not be written or read.
     #[error(transparent)]
     Recording(#[from] recording::RecordingError),
+    /// The live view could not start.
+    #[error(transparent)]
+    Live(#[from] live_view::LiveError),
     /// CSV writing failed.
     #[error("csv: {0}")]
     Csv(#[from] csv::Error),

@@ -7,8 +7,9 @@
 //! ([`episode`]), the metrics ([`metrics`]) and the experiment runners ([`cases`],
 //! [`campaign`]) are pure; files are written by [`report`] and [`plot`]. [`load`] measures a
 //! planner process under load (`sim_client load` / `soak`). [`record`] writes a trial to MCAP (with a Foxglove scene from
-//! [`scene`]), [`recorded`] runs the cases and campaign trials with it; [`log_replay`] replays
-//! a recorded traffic log against the planner.
+//! `recording::scene`), [`recorded`] runs the cases and campaign trials with it; [`live`]
+//! shows a trial live in Foxglove; [`log_replay`] replays a recorded traffic log against the
+//! planner.
 
 pub mod campaign;
 pub mod campaign_report;
@@ -18,6 +19,7 @@ pub mod episode;
 pub mod error;
 mod inproc;
 pub mod link;
+pub mod live;
 pub mod load;
 pub mod log_replay;
 pub mod metrics;
@@ -30,8 +32,8 @@ pub mod presets;
 pub mod record;
 pub mod recorded;
 pub mod report;
+mod ros2_channel;
 pub mod safety;
-pub mod scene;
 
 pub use connect::Transport;
 pub use error::{Result, SimClientError};

@@ -194,6 +194,7 @@ pub fn replay_log(
             info.max_svs
         },
         record_trajectory: true,
+        audit_nominal: None,
     };
     let mut follower = Follower {
         by_step: log.steps.iter().map(|s| (s.step - first.step, s)).collect(),

@@ -12,7 +12,7 @@ use sim_client::{Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
 
 use load_command::{LoadArgs, LoadWorkerArgs};
-use study_commands::{CampaignArgs, PaperArgs};
+use study_commands::{CampaignArgs, LiveArgs, PaperArgs};
 
 mod load_command;
 mod replay_command;
@@ -38,6 +38,8 @@ enum TransportKind {
     Iceoryx2,
     /// A `planner serve` process reached with `--zenoh-connect` or `--zenoh-config`.
     Zenoh,
+    /// A `planner serve --ros2` node on the ROS 2 domain `ROS_DOMAIN_ID` names (docs/ros2.md).
+    Ros2,
 }
 
 #[derive(Args)]
@@ -74,8 +76,8 @@ struct Common {
     #[arg(long)]
     busy_poll: bool,
     /// Start `planner serve` (found next to this executable) for the run and stop it at exit
-    /// (with `--transport zenoh` on a free loopback port, or `--transport iceoryx2` under a
-    /// prefix of its own).
+    /// (with `--transport zenoh` on a free loopback port, `--transport iceoryx2` under a
+    /// prefix of its own, `--transport ros2` as a node on this process's ROS 2 domain).
     #[arg(long)]
     spawn_planner: bool,
     /// Where a planner started with `--spawn-planner` writes its log (default: this stderr).
@@ -113,7 +115,7 @@ impl Common {
         self.planner_public_key
             .as_deref()
             .map(|hex| {
-                protocol::signing::parse_hex(hex)
+                protocol::parse_hex(hex)
                     .and_then(|bytes| ResponseVerifier::from_bytes(&bytes))
                     .ok_or_else(|| anyhow::anyhow!("--planner-public-key is not an Ed25519 public key"))
             })
@@ -180,6 +182,17 @@ impl Common {
                 };
                 Ok((Transport::Zenoh(target), planner))
             }
+            TransportKind::Ros2 => {
+                if zenoh_flags || self.iceoryx2_prefix.is_some() || self.busy_poll {
+                    anyhow::bail!("--zenoh-*, --iceoryx2-prefix and --busy-poll do not apply to --transport ros2");
+                }
+                let planner = if self.spawn_planner {
+                    Some(spawn(Serve::Ros2)?)
+                } else {
+                    None
+                };
+                Ok((Transport::Ros2 { verifier }, planner))
+            }
             TransportKind::Iceoryx2 => {
                 if zenoh_flags {
                     anyhow::bail!("--zenoh-connect / --zenoh-config need --transport zenoh");
@@ -240,6 +253,8 @@ enum Command {
         /// MCAP file (docs/recording.md).
         #[arg(long, value_name = "FILE.mcap")]
         record: Option<PathBuf>,
+        #[command(flatten)]
+        live: LiveArgs,
     },
     /// Log replay: the SVs of a recording follow their recorded trajectories, the ego is
     /// re-planned from its recorded start; scored like a campaign trial.
@@ -280,7 +295,7 @@ fn print_files(files: &[PathBuf]) {
 }
 
 fn main() -> Result<()> {
-    supervise::init_process("warn");
+    supervise::init_process(&format!("warn,{}", hmdp_ros2::QUIET_LOG_DIRECTIVES));
     let cli = Cli::parse();
     let started = Instant::now();
     let mut exit_code = None;
@@ -306,7 +321,8 @@ fn main() -> Result<()> {
             seed,
             paper,
             record,
-        } => study_commands::run_case1(&common, seed, &paper, record.as_deref())?,
+            live,
+        } => study_commands::run_case1(&common, seed, &paper, record.as_deref(), &live)?,
         Command::Replay { common, replay } => {
             let (transport, _planner) = common.open(None)?;
             replay_command::run_replay(&replay, &transport, &common.planner_config()?)?;

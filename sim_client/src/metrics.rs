@@ -34,6 +34,55 @@ impl CollisionSplit {
     }
 }
 
+/// Nominal decisions by where they stand against the plain MPC (no violation allowance, band
+/// slack within `d_HS`; [`decision::classify_nominal`]): what compares with the paper's NOR.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NominalSplit {
+    /// The chosen plan satisfies the plain MPC.
+    pub plain: u64,
+    /// The chosen plan uses a relaxation, but the plain MPC has a plan too.
+    pub relaxed_by_choice: u64,
+    /// Only the violation allowance makes the state nominal.
+    pub needed_allowance: u64,
+    /// Only the soft band makes the state nominal.
+    pub needed_soft_band: u64,
+    /// Either relaxation does, the plain MPC does not.
+    pub needed_either: u64,
+}
+
+impl NominalSplit {
+    /// Counts one class.
+    pub fn add(&mut self, class: decision::NominalClass) {
+        use decision::NominalClass as C;
+        *match class {
+            C::Plain => &mut self.plain,
+            C::RelaxedByChoice => &mut self.relaxed_by_choice,
+            C::NeededAllowance => &mut self.needed_allowance,
+            C::NeededSoftBand => &mut self.needed_soft_band,
+            C::NeededEither => &mut self.needed_either,
+        } += 1;
+    }
+
+    /// Sum of two tallies.
+    pub fn merge(&mut self, other: &NominalSplit) {
+        self.plain += other.plain;
+        self.relaxed_by_choice += other.relaxed_by_choice;
+        self.needed_allowance += other.needed_allowance;
+        self.needed_soft_band += other.needed_soft_band;
+        self.needed_either += other.needed_either;
+    }
+
+    /// Decisions the plain MPC would make nominally.
+    pub fn plain_feasible(&self) -> u64 {
+        self.plain + self.relaxed_by_choice
+    }
+
+    /// Decisions classified.
+    pub fn total(&self) -> u64 {
+        self.plain_feasible() + self.needed_allowance + self.needed_soft_band + self.needed_either
+    }
+}
+
 /// Reproducible metrics of one episode (no wall-clock quantity).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeMetrics {
@@ -41,6 +90,9 @@ pub struct EpisodeMetrics {
     pub decisions: u64,
     /// Planner decisions by layer (all zero for the IDM + MOBIL ego).
     pub decisions_by_layer: LayerCounts,
+    /// The nominal decisions against the plain MPC (all zero unless audited).
+    #[serde(default)]
+    pub nominal_split: NominalSplit,
     /// 1 when the ego collided (the episode stopped there), else 0.
     pub collisions: u32,
     /// Time of the collision (s).
@@ -72,6 +124,7 @@ impl EpisodeMetrics {
     /// Computes the metrics of an episode.
     pub fn from_episode(e: &Episode) -> Self {
         let mut by_layer = LayerCounts::default();
+        let mut nominal_split = NominalSplit::default();
         let mut lane_changes = 0;
         let mut beta_switches = 0;
         let mut corrective = 0u64;
@@ -80,6 +133,9 @@ impl EpisodeMetrics {
         for d in &e.decisions {
             if let Some(layer) = d.layer {
                 by_layer.add(layer);
+            }
+            if let Some(class) = d.nominal_class {
+                nominal_split.add(class);
             }
             if d.target_lane != last_lane {
                 lane_changes += 1;
@@ -103,6 +159,7 @@ impl EpisodeMetrics {
             safety: e.safety.clone(),
             decisions: e.decisions.len() as u64,
             decisions_by_layer: by_layer,
+            nominal_split,
             collisions: u32::from(e.collision.is_some()),
             collision_time_s: e.collision.map(|c| clean(c.time_s)),
             collision_with: e.collision.map(|c| c.other_id),
@@ -172,6 +229,7 @@ mod tests {
             plan: Vec::new(),
             solve_us: 100 * (index + 1),
             request: None,
+            nominal_class: None,
         }
     }
 

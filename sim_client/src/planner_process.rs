@@ -21,6 +21,8 @@ pub enum Serve {
     },
     /// Zenoh, listening on a free loopback port.
     Zenoh,
+    /// A ROS 2 node, on the domain and discovery range this process's environment names.
+    Ros2,
 }
 
 /// A started planner and where it is reached.
@@ -76,6 +78,9 @@ pub fn spawn_planner(serve: &Serve, options: &SpawnOptions) -> Result<SpawnedPla
             let endpoint = format!("tcp/127.0.0.1:{port}");
             cmd.args(["--zenoh-listen", &endpoint]);
             zenoh_endpoint = Some(endpoint);
+        }
+        Serve::Ros2 => {
+            cmd.arg("--ros2");
         }
     }
     if let Some(w) = options.workers {

@@ -284,6 +284,7 @@ mod tests {
             plan: Vec::new(),
             solve_us: 0,
             request: None,
+            nominal_class: None,
         }
     }
 

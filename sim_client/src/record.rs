@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use recording::scene::{scene_update, scene_update_schema, PlannedStep, Role, SceneRoad, SceneVehicle};
 use recording::{ChannelSpec, McapSink, Rotation};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -10,7 +11,6 @@ use traffic::{SimParams, World};
 
 use crate::episode::{Episode, StepObserver};
 use crate::error::Result;
-use crate::scene::{scene_update, scene_update_schema, PlannedStep, SceneRoad};
 
 /// Topic of the trial's settings (one message, first).
 pub const TRIAL_TOPIC: &str = "/sim/trial";
@@ -97,6 +97,16 @@ pub struct SimDecision<'a> {
     pub plan: Vec<protocol::PlanStep>,
 }
 
+impl<'a> SimDecision<'a> {
+    /// The message of `record`.
+    pub fn of(record: &'a crate::episode::DecisionRecord) -> Self {
+        Self {
+            record,
+            plan: record.plan.iter().map(|&s| s.into()).collect(),
+        }
+    }
+}
+
 fn vehicle_states_schema() -> Value {
     let n = json!({ "type": "number" });
     let i = json!({ "type": "integer" });
@@ -168,10 +178,81 @@ pub fn channels() -> Vec<ChannelSpec> {
         },
         ChannelSpec {
             topic: SCENE_TOPIC,
-            schema_name: "foxglove.SceneUpdate",
+            schema_name: recording::scene::SCENE_SCHEMA_NAME,
             schema: scene_update_schema,
         },
     ]
+}
+
+/// The road of a trial's scene.
+pub fn scene_road(info: &TrialInfo) -> SceneRoad {
+    SceneRoad {
+        lanes: info.lanes,
+        lane_width_m: info.lane_width_m,
+    }
+}
+
+/// The scene of one step at `time_ns`: every vehicle (id 0 is the ego; the SVs in
+/// `corrective` orange) and the ego's last plan.
+pub fn step_scene(
+    time_ns: u64,
+    road: SceneRoad,
+    vehicles: &[RecordedVehicle],
+    plan: &[PlannedStep],
+    corrective: &[u32],
+) -> Value {
+    let vehicles: Vec<SceneVehicle> = vehicles
+        .iter()
+        .map(|v| SceneVehicle {
+            id: v.id,
+            role: match v.id {
+                traffic::EGO_ID => Role::Ego,
+                id if corrective.contains(&id) => Role::CorrectiveSv,
+                _ => Role::Sv,
+            },
+            x_m: v.x_m,
+            y_m: v.y_m,
+            v_mps: v.v_mps,
+            length_m: traffic::VEHICLE_LENGTH,
+            width_m: traffic::VEHICLE_WIDTH,
+        })
+        .collect();
+    scene_update(time_ns, road, &vehicles, plan)
+}
+
+/// The plan of a decision, as the scene draws it.
+pub fn planned_steps(decision: &crate::episode::DecisionRecord) -> Vec<PlannedStep> {
+    decision
+        .plan
+        .iter()
+        .map(|s| PlannedStep {
+            x_m: s.x_m,
+            lane: s.maneuver.lane,
+        })
+        .collect()
+}
+
+/// A world's vehicles as recorded.
+pub fn vehicle_states(world: &World) -> VehicleStates {
+    VehicleStates {
+        step: world.step_index(),
+        time_s: crate::metrics::clean(world.time()),
+        vehicles: world
+            .vehicles()
+            .iter()
+            .map(|v| RecordedVehicle {
+                id: v.id,
+                x_m: v.x,
+                y_m: v.y,
+                v_mps: v.v,
+                a_mps2: v.a,
+                vy_mps: v.vy,
+                lane: v.lane,
+                target_lane: v.target_lane,
+                beta: v.beta,
+            })
+            .collect(),
+    }
 }
 
 /// Collects the ground truth of every step (as a [`StepObserver`]).
@@ -183,30 +264,13 @@ pub struct GroundTruth {
 
 impl StepObserver for GroundTruth {
     fn after_step(&mut self, world: &mut World) -> Result<()> {
-        self.steps.push(VehicleStates {
-            step: world.step_index(),
-            time_s: crate::metrics::clean(world.time()),
-            vehicles: world
-                .vehicles()
-                .iter()
-                .map(|v| RecordedVehicle {
-                    id: v.id,
-                    x_m: v.x,
-                    y_m: v.y,
-                    v_mps: v.v,
-                    a_mps2: v.a,
-                    vy_mps: v.vy,
-                    lane: v.lane,
-                    target_lane: v.target_lane,
-                    beta: v.beta,
-                })
-                .collect(),
-        });
+        self.steps.push(vehicle_states(world));
         Ok(())
     }
 }
 
-fn nanos(time_s: f64) -> u64 {
+/// Simulated seconds as nanoseconds (negative as 0).
+pub fn nanos(time_s: f64) -> u64 {
     (time_s.max(0.0) * 1e9).round() as u64
 }
 
@@ -215,38 +279,20 @@ fn nanos(time_s: f64) -> u64 {
 pub fn write_trial(path: &Path, info: &TrialInfo, truth: &[VehicleStates], episode: &Episode) -> Result<Vec<PathBuf>> {
     let mut sink = McapSink::create(path, channels(), Rotation::default())?;
     sink.write_json(0, 0, info)?;
-    let road = SceneRoad {
-        lanes: info.lanes,
-        lane_width_m: info.lane_width_m,
-    };
+    let road = scene_road(info);
     let mut decisions = episode.decisions.iter().peekable();
+    let mut last: Option<&crate::episode::DecisionRecord> = None;
     let mut plan: Vec<PlannedStep> = Vec::new();
     for states in truth {
         while let Some(d) = decisions.next_if(|d| d.time_s <= states.time_s + 1e-9) {
-            let message = SimDecision {
-                record: d,
-                plan: d.plan.iter().map(|&s| s.into()).collect(),
-            };
-            sink.write_json(2, nanos(d.time_s), &message)?;
-            plan = d
-                .plan
-                .iter()
-                .map(|s| PlannedStep {
-                    x_m: s.x_m,
-                    lane: s.maneuver.lane,
-                })
-                .collect();
+            sink.write_json(2, nanos(d.time_s), &SimDecision::of(d))?;
+            plan = planned_steps(d);
+            last = Some(d);
         }
         let at = nanos(states.time_s);
         sink.write_json(1, at, states)?;
-        let scene = scene_update(
-            at,
-            road,
-            &states.vehicles,
-            &plan,
-            traffic::VEHICLE_LENGTH,
-            traffic::VEHICLE_WIDTH,
-        );
+        let corrective = last.map_or(&[][..], |d| &d.corrective_sv_ids);
+        let scene = step_scene(at, road, &states.vehicles, &plan, corrective);
         sink.write_json(3, at, &scene)?;
     }
     Ok(sink.finish()?)

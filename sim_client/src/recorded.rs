@@ -8,7 +8,7 @@ use decision::PlannerConfig;
 
 use crate::campaign::{trial_spec, CampaignSettings, DriverKind};
 use crate::cases::{self, Ablation, Case2, CaseRun};
-use crate::episode::{run_episode_observed, Driver, Episode, EpisodeSpec};
+use crate::episode::{run_episode_observed, Driver, Episode, EpisodeSpec, StepObserver};
 use crate::error::{Result, SimClientError};
 use crate::link::Transport;
 use crate::record::{write_trial, GroundTruth, TrialInfo};
@@ -49,8 +49,20 @@ pub fn record_case(
     seed: u64,
     path: &Path,
 ) -> Result<(CaseRun, Vec<PathBuf>)> {
+    record_case_observed(label, config, transport, seed, path, &mut ())
+}
+
+/// [`record_case`] with `also` observing the run too (e.g. the live view).
+pub fn record_case_observed(
+    label: &str,
+    config: &PlannerConfig,
+    transport: &Transport,
+    seed: u64,
+    path: &Path,
+    also: &mut dyn StepObserver,
+) -> Result<(CaseRun, Vec<PathBuf>)> {
     let mut truth = GroundTruth::default();
-    let run = cases::run_case_observed(config, transport, seed, &mut truth)?;
+    let run = cases::run_case_observed(config, transport, seed, &mut (&mut truth, also))?;
     let info = trial_info(label, &cases::case1_spec(seed, config.perception.max_svs));
     let files = write_trial(path, &info, &truth.steps, &run.episode)?;
     Ok((run, files))

@@ -1,12 +1,17 @@
 //! `sim_client case1`, `case2` and `campaign`: the paper's studies, optionally recorded.
 
 use std::io::IsTerminal;
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_client::campaign::{self, CampaignSettings};
+use sim_client::episode::StepObserver;
+use sim_client::live::{LiveTrial, Pace};
+use sim_client::record::{TrialInfo, SCENE_TOPIC};
 use sim_client::{cases, recorded, report, Transport};
 
 use super::{print_files, Common, TransportKind};
@@ -22,6 +27,48 @@ pub struct PaperArgs {
 impl PaperArgs {
     pub fn config(&self) -> Result<decision::PlannerConfig> {
         Ok(sim_client::presets::paper_literal(self.paper_config.as_deref())?)
+    }
+}
+
+/// The live view of a case (docs/live-view.md).
+#[derive(Args)]
+pub struct LiveArgs {
+    /// Serve the planner's trial live to Foxglove on this address (IP:PORT; without a value
+    /// 127.0.0.1:8765): the world, the decisions and the 3D scene of the recording's
+    /// channels, paced at real time.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    foxglove: Option<SocketAddr>,
+    /// With --foxglove: run as fast as possible instead of at real time.
+    #[arg(long, requires = "foxglove")]
+    fast: bool,
+    /// With --foxglove: before starting, wait this long at most (e.g. `60s`) for a viewer to
+    /// subscribe to the scene.
+    #[arg(long, value_name = "D", value_parser = humantime::parse_duration, requires = "foxglove")]
+    foxglove_wait: Option<Duration>,
+}
+
+impl LiveArgs {
+    /// The live view of the trial `info` describes, if asked for (having waited for a
+    /// viewer if asked to).
+    fn start(&self, info: TrialInfo) -> Result<Option<LiveTrial>> {
+        let Some(addr) = self.foxglove else {
+            return Ok(None);
+        };
+        let pace = if self.fast { Pace::Fast } else { Pace::RealTime };
+        let live = LiveTrial::start(&live_view::LiveOptions::new(addr, "hmdp sim_client"), info, pace)?;
+        let addr = live.server().local_addr();
+        println!("live view: open ws://{addr} in Foxglove (3D panel: topic {SCENE_TOPIC}, display frame `road`)");
+        if let Some(wait) = self.foxglove_wait {
+            if live.server().wait_for_subscriber(SCENE_TOPIC, wait) {
+                println!("live view: a viewer subscribed to {SCENE_TOPIC}");
+            } else {
+                println!(
+                    "live view: no viewer after {}; starting",
+                    humantime::format_duration(wait)
+                );
+            }
+        }
+        Ok(Some(live))
     }
 }
 
@@ -154,20 +201,29 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn run_case1(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&Path>) -> Result<()> {
+pub fn run_case1(common: &Common, seed: u64, paper: &PaperArgs, record: Option<&Path>, live: &LiveArgs) -> Result<()> {
     let (transport, _planner) = common.open(None)?;
     let config = common.planner_config()?;
-    let (case, recorded) = match record {
-        Some(path) => {
-            let (planner, files) = recorded::record_case("case1", &config, &transport, seed, path)?;
-            let paper_literal = Some(cases::run_case(&paper.config()?, &Transport::InProcess, seed)?);
-            (cases::Case1 { planner, paper_literal }, files)
-        }
+    let info = recorded::trial_info("case1", &cases::case1_spec(seed, config.perception.max_svs));
+    let mut live = live.start(info)?;
+    let mut nobody = ();
+    let observer: &mut dyn StepObserver = match live.as_mut() {
+        Some(live) => live,
+        None => &mut nobody,
+    };
+    let (planner, recorded) = match record {
+        Some(path) => recorded::record_case_observed("case1", &config, &transport, seed, path, observer)?,
         None => (
-            cases::run_case1_compared(&config, Some(&paper.config()?), &transport, seed)?,
+            cases::run_case_observed(&config, &transport, seed, observer)?,
             Vec::new(),
         ),
     };
+    if let Some(live) = live {
+        let c = live.finish();
+        println!("live view: {} messages published, {} dropped", c.published, c.dropped);
+    }
+    let paper_literal = Some(cases::run_case(&paper.config()?, &Transport::InProcess, seed)?);
+    let case = cases::Case1 { planner, paper_literal };
     print_recorded(&recorded);
     let files = report::write_case1(&common.out, &case)?;
     println!("case1: {}", report::episode_summary_line(&case.planner.metrics));

@@ -17,6 +17,7 @@ fn random_spec(seed: u64, duration_s: f64) -> EpisodeSpec {
         duration_s,
         max_svs: PlannerConfig::default().perception.max_svs,
         record_trajectory: false,
+        audit_nominal: None,
     }
 }
 
@@ -199,6 +200,7 @@ fn spec_with(ego_lane: u8, svs: Vec<traffic::VehicleInit>) -> EpisodeSpec {
         duration_s: 20.0,
         max_svs: 16,
         record_trajectory: true,
+        audit_nominal: None,
     }
 }
 

@@ -5,6 +5,7 @@ use std::time::Duration;
 
 pub mod forger;
 pub mod instances;
+pub mod ros2;
 
 /// Path of a workspace binary built in the same profile as the running test.
 ///
@@ -35,9 +36,15 @@ pub struct Process {
 impl Process {
     /// Starts `binary(name)` with `args`; stderr goes to `<scratch>/<tag>.log`.
     pub fn start(name: &str, args: &[&str], tag: &str) -> Self {
+        Self::start_with_env(name, args, tag, &[])
+    }
+
+    /// [`Process::start`] with `env` added to the environment.
+    pub fn start_with_env(name: &str, args: &[&str], tag: &str, env: &[(&str, String)]) -> Self {
         let log = scratch_dir("logs").join(format!("{tag}.log"));
         let mut command = std::process::Command::new(binary(name));
         command
+            .envs(env.iter().map(|(k, v)| (k, v)))
             .args(args)
             .env("RUST_LOG", "info,zenoh=warn")
             .stdin(std::process::Stdio::null())
@@ -187,7 +194,19 @@ pub fn keygen(dir: &std::path::Path, name: &str) -> (PathBuf, PathBuf) {
 /// Runs `sim_client case1 --out <dir>/<name> <args>` and returns its `decisions.csv`;
 /// `planner_log` is shown if the run fails.
 pub fn case1_decisions(dir: &std::path::Path, name: &str, args: &[&str], planner_log: &dyn Fn() -> String) -> Vec<u8> {
+    case1_decisions_with_env(dir, name, args, &[], planner_log)
+}
+
+/// [`case1_decisions`] with `env` added to `sim_client`'s environment.
+pub fn case1_decisions_with_env(
+    dir: &std::path::Path,
+    name: &str,
+    args: &[&str],
+    env: &[(&str, String)],
+    planner_log: &dyn Fn() -> String,
+) -> Vec<u8> {
     let out = std::process::Command::new(binary("sim_client"))
+        .envs(env.iter().map(|(k, v)| (k, v)))
         .args(["case1", "--out"])
         .arg(dir.join(name))
         .args(args)

@@ -28,7 +28,7 @@ impl Backend {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum LpSolver {
-    /// The dense dual simplex of `small_lp.rs` (HiGHS when it gives no verdict).
+    /// The dense dual simplex of the `dense_lp` crate (HiGHS when it gives no verdict).
     #[default]
     Dense,
     /// HiGHS, the reference.

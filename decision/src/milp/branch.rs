@@ -6,63 +6,30 @@
 //! the root alone leaves open. Past its LP budget the tree hands its best plan to the MIP
 //! as the incumbent. Exact either way: a node is dropped only when it is infeasible, its
 //! bound reaches the best exact cost, or its LP point is integral and scored.
+//!
+//! The tree is `dense_lp::best_first`; what is the planner's is here ([`Layer`]): a node's LP
+//! on the dense simplex or on HiGHS, and the exact scoring of an integral point or of a
+//! rounding not scored before.
 
 use super::{decode, Columns};
 use crate::config::LpSolver;
 use crate::error::SolverError;
 use crate::evaluate::{evaluate, evaluate_at, Evaluation, Mode};
-use crate::highs_solver::{Bounds, HighsSolver, MipModel, MipResult, MipStatus};
+use crate::highs_solver::{self, HighsSolver, MipModel, MipStatus};
 use crate::problem::Problem;
-use crate::small_lp::{FinalTableau, LpOutcome, Pricing, SmallLp};
 use crate::types::Action;
-use std::rc::Rc;
+use dense_lp::{best_first, Bounds, DenseLp, FinalTableau, LpOutcome, Pricing, Relaxed, Search, Tree};
 
-/// How far from an integer an integer column of the relaxation may be (HiGHS's default
-/// `mip_feasibility_tolerance`).
-const INTEGRALITY_TOLERANCE: f64 = 1e-6;
-
-/// A plan within this (relative) of a bound is optimal.
-const OPTIMALITY_TOLERANCE: f64 = 1e-6;
-
-/// What the tree settled.
-pub(super) enum Settled {
-    /// The layer's optimum: the best plan, the warm incumbent included (`None`: no plan
-    /// exists).
-    Optimal(Option<Evaluation>),
-    /// The LP budget ran out; the MIP must decide, with this best plan so far.
-    Open(Option<Evaluation>),
-}
+/// What the tree settled: the layer's optimum (`Optimal`, the warm incumbent included;
+/// `None`: no plan exists), or, past the LP budget, the best plan so far for the MIP
+/// (`Open`).
+pub(super) type Settled = dense_lp::Settled<Evaluation>;
 
 /// What is known before the tree: the best warm candidate (a plan must cost no more to
 /// replace it) and the sequences already scored exactly.
 pub(super) struct WarmStart<'a> {
     pub incumbent: Option<Evaluation>,
     pub scored: &'a [Vec<Action>],
-}
-
-struct Node {
-    bound: f64,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
-    /// The parent's final dense tableau, the child's start (shared by both children).
-    start: Option<Rc<FinalTableau>>,
-}
-
-fn meets(bound: f64, cost: f64) -> bool {
-    cost <= bound + OPTIMALITY_TOLERANCE * (1.0 + bound.abs())
-}
-
-/// The integer column to branch on: the most fractional, the earliest on ties (columns are
-/// laid out step by step, so an early step's choice is split first).
-fn branching_column(model: &MipModel, values: &[f64]) -> Option<usize> {
-    let mut best: Option<(usize, f64)> = None;
-    for (c, (&integer, &v)) in model.integer.iter().zip(values).enumerate() {
-        let frac = (v - v.round()).abs();
-        if integer && frac > INTEGRALITY_TOLERANCE && best.is_none_or(|(_, f)| frac > f + 1e-9) {
-            best = Some((c, frac));
-        }
-    }
-    best.map(|(c, _)| c)
 }
 
 /// Largest relaxation (rows x columns) the dense simplex takes. A dense pivot costs that
@@ -82,52 +49,45 @@ pub(super) struct TreeLp {
     pub solver: LpSolver,
 }
 
-/// One layer's node LPs: the dense simplex, or HiGHS (also when the dense one gives no
-/// verdict). HiGHS's fixed cost per run (model checks, scaling, set-up, KKT report) is most
-/// of its time on relaxations of this size; the dense tableau has none of it.
-struct NodeLp<'a> {
+/// One layer's search: its node LPs on the dense simplex, or on HiGHS (also when the dense
+/// one gives no verdict; HiGHS's fixed cost per run, model checks, scaling, set-up, KKT
+/// report, is most of its time on relaxations of this size, and the dense tableau has none of
+/// it), and the exact scoring of the nodes' points.
+struct Layer<'a> {
+    problem: &'a Problem,
+    mode: Mode,
+    cols: &'a Columns,
     model: &'a MipModel,
-    dense: Option<SmallLp>,
+    dense: Option<DenseLp>,
     highs: &'a mut HighsSolver,
     highs_loaded: bool,
+    /// Sequences already scored exactly (the warm candidates, then the nodes' roundings).
+    scored: Vec<Vec<Action>>,
 }
 
-impl<'a> NodeLp<'a> {
-    fn new(model: &'a MipModel, tree: &'a mut TreeLp) -> Self {
-        let small = model.num_rows() * model.num_cols() <= DENSE_MAX_ENTRIES;
-        let dense = (tree.solver == LpSolver::Dense && small).then(|| dense_relaxation(model));
-        Self {
-            model,
-            dense,
-            highs: &mut tree.highs,
-            highs_loaded: false,
-        }
+impl Search for Layer<'_> {
+    type Plan = Evaluation;
+    type Error = SolverError;
+
+    fn cost(plan: &Evaluation) -> f64 {
+        plan.cost
     }
 
-    /// The relaxation within `bounds`, the dense one from the parent's final tableau
-    /// `start`, with the final tableau to start the children from; with `objective_bound`,
-    /// HiGHS may stop early and report `Infeasible` when the optimum cannot come below it.
-    fn solve(
+    fn relax(
         &mut self,
         bounds: Bounds<'_>,
         start: Option<FinalTableau>,
         objective_bound: Option<f64>,
-    ) -> Result<(MipResult, Option<FinalTableau>), SolverError> {
+    ) -> Result<(Relaxed, Option<FinalTableau>), SolverError> {
         if let Some(lp) = &mut self.dense {
             for (c, (&lo, &hi)) in bounds.lower.iter().zip(bounds.upper).enumerate() {
                 lp.set_bounds(c, lo, hi);
             }
             match lp.solve_from(Pricing::SteepestEdge, start) {
                 Ok((LpOutcome::Optimal { x, objective }, tableau)) => {
-                    let result = MipResult {
-                        status: MipStatus::Optimal,
-                        objective,
-                        columns: Some(x),
-                        nodes: 0,
-                    };
-                    return Ok((result, tableau));
+                    return Ok((Relaxed::Optimal { objective, x }, tableau));
                 }
-                Ok((LpOutcome::Infeasible, _)) => return Ok((MipResult::nothing_found(), None)),
+                Ok((LpOutcome::Infeasible, _)) => return Ok((Relaxed::Infeasible, None)),
                 Err(_) => {}
             }
         }
@@ -135,13 +95,43 @@ impl<'a> NodeLp<'a> {
             self.highs.load_relaxation(self.model)?;
             self.highs_loaded = true;
         }
-        Ok((self.highs.resolve_within(bounds, objective_bound)?, None))
+        let bounds = highs_solver::Bounds {
+            lower: bounds.lower,
+            upper: bounds.upper,
+        };
+        let result = self.highs.resolve_within(bounds, objective_bound)?;
+        let relaxed = match (result.status, result.columns) {
+            (MipStatus::Infeasible, _) => Relaxed::Infeasible,
+            (MipStatus::Optimal, Some(x)) => Relaxed::Optimal {
+                objective: result.objective,
+                x,
+            },
+            _ => Relaxed::Failed,
+        };
+        Ok((relaxed, None))
+    }
+
+    /// An integral node's optimum is its LP point.
+    fn integral(&mut self, x: &[f64]) -> Option<Evaluation> {
+        let (actions, accel) = decode(self.problem, self.cols, x);
+        evaluate_at(self.problem, &actions, &accel, self.mode)
+    }
+
+    /// The LP point's lane and beta choices rounded, at their own best accelerations.
+    fn rounding(&mut self, x: &[f64]) -> Option<Evaluation> {
+        let (actions, _) = decode(self.problem, self.cols, x);
+        if self.scored.contains(&actions) {
+            return None;
+        }
+        let plan = evaluate(self.problem, &actions, self.mode);
+        self.scored.push(actions);
+        plan
     }
 }
 
 /// `model`'s LP relaxation as a dense LP.
-pub(super) fn dense_relaxation(model: &MipModel) -> SmallLp {
-    let mut lp = SmallLp::default();
+pub(super) fn dense_relaxation(model: &MipModel) -> DenseLp {
+    let mut lp = DenseLp::default();
     for c in 0..model.num_cols() {
         lp.add_col(model.col_cost[c], model.col_lower[c], model.col_upper[c]);
     }
@@ -170,94 +160,22 @@ pub(super) fn settle(
     max_lps: usize,
 ) -> Result<Settled, SolverError> {
     let (model, cols) = built;
-    let mut best = warm.incumbent;
-    // Sequences already scored exactly (the warm candidates, then the nodes' roundings).
-    let mut scored: Vec<Vec<Action>> = warm.scored.to_vec();
-    let mut open = vec![Node {
-        bound: f64::NEG_INFINITY,
-        lower: model.col_lower.clone(),
-        upper: model.col_upper.clone(),
-        start: None,
-    }];
-    let mut node_lp = NodeLp::new(model, tree);
-    let mut lps = 0;
-    // The bound a node must beat: the best plan's cost.
-    let target = |best: &Option<Evaluation>| best.as_ref().map(|e| e.cost);
-    while let Some(at) = lowest(&open) {
-        if target(&best).is_some_and(|t| meets(open[at].bound, t)) {
-            break; // every open node is at least as costly as the best plan
-        }
-        if lps == max_lps.max(1) {
-            return Ok(Settled::Open(best));
-        }
-        let mut node = open.swap_remove(at);
-        // The parent's tableau, copied only while the sibling still needs it.
-        let start = node
-            .start
-            .take()
-            .map(|shared| Rc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone()));
-        let bounds = Bounds {
-            lower: &node.lower,
-            upper: &node.upper,
-        };
-        // A node that cannot beat the best plan may stop early: it is pruned either way.
-        let (relaxed, tableau) = node_lp.solve(bounds, start, target(&best))?;
-        lps += 1;
-        let (bound, values) = match (relaxed.status, relaxed.columns) {
-            (MipStatus::Infeasible, _) => continue,
-            (MipStatus::Optimal, Some(values)) => (relaxed.objective, values),
-            // Numerical trouble: leave the layer to the MIP.
-            _ => return Ok(Settled::Open(best)),
-        };
-        if target(&best).is_some_and(|t| meets(bound, t)) {
-            continue;
-        }
-        let (actions, accel) = decode(problem, cols, &values);
-        let Some(column) = branching_column(model, &values) else {
-            // Integral: this node's optimum is its LP point.
-            match evaluate_at(problem, &actions, &accel, mode) {
-                Some(e) => consider(&mut best, e),
-                None => return Ok(Settled::Open(best)),
-            }
-            continue;
-        };
-        // The LP point's lane and beta choices rounded, at their own best accelerations.
-        if !scored.contains(&actions) {
-            if let Some(e) = evaluate(problem, &actions, mode) {
-                consider(&mut best, e);
-            }
-            scored.push(actions);
-            if target(&best).is_some_and(|t| meets(bound, t)) {
-                continue;
-            }
-        }
-        let start = tableau.map(Rc::new);
-        let mut down = Node {
-            bound,
-            lower: node.lower.clone(),
-            upper: node.upper.clone(),
-            start: start.clone(),
-        };
-        down.upper[column] = values[column].floor();
-        let mut up = node;
-        up.bound = bound;
-        up.start = start;
-        up.lower[column] = values[column].ceil();
-        open.push(down);
-        open.push(up);
-    }
-    Ok(Settled::Optimal(best))
-}
-
-/// Index of the open node with the lowest bound (best first).
-fn lowest(open: &[Node]) -> Option<usize> {
-    (0..open.len()).min_by(|&a, &b| open[a].bound.total_cmp(&open[b].bound))
-}
-
-/// Keep `e` if it is the best plan so far (a later plan wins an exact tie, as a solver's plan
-/// wins one against the warm incumbent).
-fn consider(best: &mut Option<Evaluation>, e: Evaluation) {
-    if best.as_ref().is_none_or(|b| e.cost <= b.cost) {
-        *best = Some(e);
-    }
+    let small = model.num_rows() * model.num_cols() <= DENSE_MAX_ENTRIES;
+    let mut layer = Layer {
+        problem,
+        mode,
+        cols,
+        model,
+        dense: (tree.solver == LpSolver::Dense && small).then(|| dense_relaxation(model)),
+        highs: &mut tree.highs,
+        highs_loaded: false,
+        scored: warm.scored.to_vec(),
+    };
+    let search = Tree {
+        integer: &model.integer,
+        lower: &model.col_lower,
+        upper: &model.col_upper,
+        max_lps,
+    };
+    best_first(&mut layer, search, warm.incumbent)
 }

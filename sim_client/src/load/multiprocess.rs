@@ -26,6 +26,11 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
                 flags.extend(["--planner-public-key".into(), v.to_hex()]);
             }
         }
+        Transport::Ros2 { verifier } => {
+            if let Some(v) = verifier {
+                flags.extend(["--planner-public-key".into(), v.to_hex()]);
+            }
+        }
         Transport::Zenoh(target) => {
             if let Some(e) = &target.endpoint {
                 flags.extend(["--zenoh-connect".into(), e.clone()]);

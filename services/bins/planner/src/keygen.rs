@@ -7,7 +7,7 @@ use protocol::ResponseSigner;
 pub fn run(out: &std::path::Path) -> Result<()> {
     use std::io::Write;
     use std::os::unix::fs::OpenOptionsExt;
-    let mut seed = [0u8; protocol::signing::KEY_LENGTH];
+    let mut seed = [0u8; protocol::KEY_LENGTH];
     getrandom::fill(&mut seed).map_err(|e| anyhow::anyhow!("the system's random source: {e}"))?;
     let signer = ResponseSigner::from_seed(&seed);
     let public = out.with_extension(match out.extension() {

@@ -91,9 +91,9 @@ enum ActionSet {
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
-    supervise::init_process(match cli.command {
-        Command::Serve(_) => "info,zenoh=warn",
-        _ => "warn",
+    supervise::init_process(&match cli.command {
+        Command::Serve(_) => format!("info,zenoh=warn,{}", hmdp_ros2::QUIET_LOG_DIRECTIVES),
+        _ => "warn".to_owned(),
     });
     if matches!(cli.command, Command::Serve(_)) {
         // A vehicle that hangs up mid-answer must not kill the service.

@@ -32,6 +32,10 @@ pub struct ScalingCell {
     pub svs: usize,
     /// Admissible action sequences from a middle lane.
     pub sequences: usize,
+    /// The scenario tree's size: kept branches per SV in the perception window, and the
+    /// MILP's rows (of the last layer solved), means over the cell's situations.
+    pub branches_per_sv: f64,
+    pub rows: f64,
     pub milp: Percentiles,
     /// `None` where the enumeration was skipped.
     pub enumeration: Option<Percentiles>,
@@ -87,6 +91,8 @@ pub fn run(base: &PlannerConfig, spec: &ScalingSpec) -> Result<ScalingReport, De
                     combined,
                     svs,
                     sequences,
+                    branches_per_sv: 0.0,
+                    rows: 0.0,
                     milp: Percentiles::default(),
                     enumeration: None,
                     agreed: 0,
@@ -96,6 +102,9 @@ pub fn run(base: &PlannerConfig, spec: &ScalingSpec) -> Result<ScalingReport, De
                 for k in 0..spec.per_cell {
                     let s = generator.situation(&config, &class);
                     let a = timed_decision(&mut milp, &s, &mut t_milp)?;
+                    let n = spec.per_cell as f64;
+                    cell.branches_per_sv += a.stats.branches as f64 / a.stats.svs_considered.max(1) as f64 / n;
+                    cell.rows += a.stats.rows as f64 / n;
                     if with_oracle {
                         let b = timed_decision(&mut oracle, &s, &mut t_oracle)?;
                         cell.compared += 1;
@@ -124,7 +133,7 @@ pub fn run(base: &PlannerConfig, spec: &ScalingSpec) -> Result<ScalingReport, De
 pub fn render(report: &ScalingReport) -> String {
     let ms = |us: u64| us as f64 / 1000.0;
     let mut out = String::from(
-        "   H  actions   SVs  sequences  MILP p50 / p99 / max (ms)    enumeration p50 / p99 / max (ms)  p50 ratio  agreement\n",
+        "   H  actions   SVs  sequences  branches/SV   rows  MILP p50 / p99 / max (ms)    enumeration p50 / p99 / max (ms)  p50 ratio  agreement\n",
     );
     for c in &report.cells {
         let m = &c.milp;
@@ -138,11 +147,13 @@ pub fn render(report: &ScalingReport) -> String {
             format!("{} / {}", c.agreed, c.compared)
         };
         out.push_str(&format!(
-            "{:>4}  {:<8} {:>4}  {:>9}  {:7.2} / {:7.2} / {:7.2}    {:>32}  {:>9}  {}\n",
+            "{:>4}  {:<8} {:>4}  {:>9}  {:>11.2}  {:>5.0}  {:7.2} / {:7.2} / {:7.2}    {:>32}  {:>9}  {}\n",
             c.horizon,
             if c.combined { "combined" } else { "single" },
             c.svs,
             c.sequences,
+            c.branches_per_sv,
+            c.rows,
             ms(m.p50_us),
             ms(m.p99_us),
             ms(m.max_us),

@@ -1,5 +1,6 @@
 //! `planner serve`: the service with its front ends until SIGINT or SIGTERM.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -7,12 +8,14 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use hmdp_ros2::MarkersFor;
 use planner_service::config_file::ServiceSection;
-use planner_service::{RateLimit, Service, ServiceConfig, Stats, QUEUE_PER_WORKER};
+use planner_service::{RateLimit, Service, ServiceConfig, QUEUE_PER_WORKER};
 use protocol::ResponseSigner;
-use recording::{PlanRecorder, RecorderOptions, Rotation};
 use tokio::sync::oneshot;
 use transport::iceoryx2::{ServerOptions, WaitMode};
+
+mod observe;
 
 #[derive(clap::Args)]
 pub struct ServeArgs {
@@ -22,6 +25,19 @@ pub struct ServeArgs {
     /// Serve over iceoryx2 shared memory (request-response `hmdp/planner/plan`).
     #[arg(long)]
     iceoryx2: bool,
+    /// Serve as a ROS 2 node (`hmdp_planner`: service `/hmdp/plan`, topics `/hmdp/decisions`
+    /// and `/hmdp/plan_markers`) on the domain `ROS_DOMAIN_ID` names (default 0); discovery
+    /// follows `ROS_AUTOMATIC_DISCOVERY_RANGE`. See docs/ros2.md.
+    #[arg(long)]
+    ros2: bool,
+    /// The ROS 2 node's name.
+    #[arg(long, value_name = "NAME", default_value = hmdp_ros2::DEFAULT_SERVER_NODE, requires = "ros2")]
+    ros2_node: String,
+    /// Whose answers get RViz markers on `/hmdp/plan_markers`: `all`, `none`, or one vehicle
+    /// id (with several vehicles each array replaces the last). Built only while a marker
+    /// subscriber is discovered.
+    #[arg(long, value_name = "all|none|ID", default_value = "all", value_parser = parse_markers, requires = "ros2")]
+    ros2_markers: MarkersFor,
     /// iceoryx2 shared-memory file prefix; clients must use the same (default: iceoryx2's).
     #[arg(long, value_name = "PREFIX", requires = "iceoryx2")]
     iceoryx2_prefix: Option<String>,
@@ -69,6 +85,11 @@ pub struct ServeArgs {
     /// Start a new file after this long, e.g. `1h`.
     #[arg(long, value_parser = humantime::parse_duration, requires = "record")]
     record_rotate_every: Option<Duration>,
+    /// Serve a live view to Foxglove on this address (IP:PORT; without a value
+    /// 127.0.0.1:8765): every request, answer and statistics document on the recording's
+    /// topics and a 3D scene per answer (docs/live-view.md). Never delays an answer.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    foxglove: Option<SocketAddr>,
     /// Queue places one vehicle id may hold; beyond that its requests get the fallback at once.
     #[arg(long, default_value_t = planner_service::QUEUE_PER_VEHICLE)]
     vehicle_queue: usize,
@@ -98,6 +119,18 @@ pub struct ServeArgs {
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     inject_solve_delay_ms: u64,
+}
+
+/// `--ros2-markers`: `all`, `none` or a vehicle id.
+fn parse_markers(text: &str) -> Result<MarkersFor, String> {
+    match text {
+        "all" => Ok(MarkersFor::Everyone),
+        "none" => Ok(MarkersFor::Nobody),
+        id => id
+            .parse()
+            .map(MarkersFor::Vehicle)
+            .map_err(|_| format!("`{id}` is not all, none or a vehicle id")),
+    }
 }
 
 /// The service core's settings from the command line and the `[service]` table.
@@ -220,9 +253,9 @@ async fn run_until_stopped(
 
 pub fn run(args: ServeArgs) -> Result<()> {
     let zenoh_wanted = !(args.zenoh_listen.is_empty() && args.zenoh_connect.is_empty() && args.zenoh_config.is_none());
-    if !zenoh_wanted && !args.iceoryx2 {
+    if !zenoh_wanted && !args.iceoryx2 && !args.ros2 {
         anyhow::bail!(
-            "give --iceoryx2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
+            "give --iceoryx2, --ros2 and/or a Zenoh transport (--zenoh-config FILE, --zenoh-listen or --zenoh-connect)"
         );
     }
     let (planner_config, service_file) = planner_service::config_file::planner_files(args.config.as_deref())?;
@@ -270,20 +303,10 @@ pub fn run(args: ServeArgs) -> Result<()> {
         None
     };
     let mut config = config;
-    config.recorder = match &args.record {
-        Some(path) => {
-            let mut options = RecorderOptions::new(path);
-            options.rotation = Rotation {
-                max_bytes: args.record_rotate_mib.map(|m| m.saturating_mul(1 << 20)),
-                max_duration: args.record_rotate_every,
-            };
-            tracing::info!(file = %path.display(), "recording");
-            Some(PlanRecorder::start(&options).with_context(|| format!("recording to {}", path.display()))?)
-        }
-        None => None,
-    };
+    let watching = observe::Watching::start(&args)?;
+    config.observers = watching.observers();
     let service = Arc::new(Service::start(planner_config, config.clone())?);
-    let stats_recording = config.recorder.clone().map(|r| record_stats(r, service.stats()));
+    let stats_thread = watching.publish_stats(service.stats());
     tracing::info!(
         workers = config.workers,
         queue = config.queue_capacity,
@@ -307,7 +330,22 @@ pub fn run(args: ServeArgs) -> Result<()> {
     } else {
         (None, None)
     };
+    let ros2 = if args.ros2 {
+        let options = hmdp_ros2::ServerOptions {
+            node: hmdp_ros2::NodeConfig::named(args.ros2_node.clone()),
+            markers: args.ros2_markers,
+            ..Default::default()
+        };
+        let server = planner_service::ros2_front::serve(Arc::clone(&service), options).context("ROS 2 front end")?;
+        tracing::info!(node = %args.ros2_node, service = hmdp_ros2::SERVICE_NAME, "planner serving over ROS 2");
+        Some(server)
+    } else {
+        None
+    };
     let result = runtime.block_on(run_until_stopped(Arc::clone(&service), zenoh_config, iceoryx2_done));
+    if let Some(server) = ros2 {
+        server.stop();
+    }
     stop_iceoryx2.store(true, Ordering::Relaxed);
     if let Some(t) = iceoryx2_thread {
         let _ = t.join();
@@ -317,42 +355,10 @@ pub fn run(args: ServeArgs) -> Result<()> {
     // statistics count every answer.
     let stats = service.stats();
     drop(service);
+    // The observers' last handles are in `watching`: `finish` stops them.
+    drop(config);
     let snapshot = stats.snapshot();
     tracing::info!(stats = %serde_json::to_string(&snapshot).unwrap_or_default(), "final statistics");
-    if let (Some(recorder), Some((stop, thread))) = (config.recorder, stats_recording) {
-        stop.store(true, Ordering::Relaxed);
-        let _ = thread.join();
-        recorder.stats(&snapshot);
-        let summary = recorder.finish()?;
-        tracing::info!(
-            files = ?summary.files,
-            messages = summary.messages,
-            dropped = summary.dropped,
-            "recording finished"
-        );
-    }
+    watching.finish(stats_thread, &snapshot)?;
     result
-}
-
-/// Records the statistics document every second, as the Zenoh front publishes it, and warns
-/// when records were dropped.
-fn record_stats(recorder: PlanRecorder, stats: Arc<Stats>) -> (Arc<AtomicBool>, JoinHandle<()>) {
-    let stop = Arc::new(AtomicBool::new(false));
-    let stopped = Arc::clone(&stop);
-    let thread = std::thread::spawn(move || {
-        let mut dropped = 0;
-        let mut next = std::time::Instant::now();
-        while !stopped.load(Ordering::Relaxed) {
-            next += Duration::from_secs(1);
-            while std::time::Instant::now() < next && !stopped.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(50));
-            }
-            recorder.stats(&stats.snapshot());
-            if recorder.dropped() > dropped {
-                dropped = recorder.dropped();
-                tracing::warn!(dropped, "the recorder is behind: records dropped");
-            }
-        }
-    });
-    (stop, thread)
 }

@@ -5,14 +5,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use std::time::Instant;
 
 use protocol::{PlanRequest, PlanResponse};
 
 use crate::error::{RecordingError, Result};
+use crate::observer::{Observers, PlanObserver, WallClock};
 use crate::schema;
 use crate::sink::{ChannelSpec, McapSink, Rotation};
-use crate::{REQUEST_TOPIC, RESPONSE_TOPIC, STATS_TOPIC};
+use crate::{PLANNER_SCENE_TOPIC, REQUEST_TOPIC, RESPONSE_TOPIC, STATS_TOPIC};
 
 /// The channels of a planner recording, in the order of [`Kind`].
 pub const PLANNER_CHANNELS: [ChannelSpec; 3] = [
@@ -32,6 +33,13 @@ pub const PLANNER_CHANNELS: [ChannelSpec; 3] = [
         schema: schema::planner_stats,
     },
 ];
+
+/// The channel of the planner's scene of each answer (the live view's; not recorded).
+pub const PLANNER_SCENE_CHANNEL: ChannelSpec = ChannelSpec {
+    topic: PLANNER_SCENE_TOPIC,
+    schema_name: crate::scene::SCENE_SCHEMA_NAME,
+    schema: crate::scene::scene_update_schema,
+};
 
 /// Where and how to record.
 #[derive(Debug, Clone)]
@@ -65,8 +73,8 @@ pub struct RecordingSummary {
 }
 
 enum Record {
-    Request(u64, Box<PlanRequest>),
-    Response(u64, Box<PlanResponse>),
+    Request(u64, Arc<PlanRequest>),
+    Response(u64, Arc<PlanResponse>),
     Stats(u64, Vec<u8>),
     Stop,
 }
@@ -77,8 +85,8 @@ type WriterThread = JoinHandle<Result<(Vec<PathBuf>, u64)>>;
 struct Shared {
     dropped: AtomicU64,
     thread: Mutex<Option<WriterThread>>,
-    /// Wall clock and monotonic clock at the start: log times are wall-clock nanoseconds.
-    anchor: (Instant, u64),
+    /// Log times are wall-clock nanoseconds.
+    clock: WallClock,
 }
 
 /// A handle to the recording (cheap to clone). Every method returns at once.
@@ -105,27 +113,19 @@ impl PlanRecorder {
             .name("recorder".into())
             .spawn(move || write_loop(sink, &rx))
             .map_err(|e| RecordingError::io(&options.path, e))?;
-        let unix_ns = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
         Ok(Self {
             tx,
             shared: Arc::new(Shared {
                 dropped: AtomicU64::new(0),
                 thread: Mutex::new(Some(thread)),
-                anchor: (Instant::now(), unix_ns),
+                clock: WallClock::now(),
             }),
         })
     }
 
     /// Wall-clock nanoseconds at `t`.
     pub fn log_time(&self, t: Instant) -> u64 {
-        let (at, ns) = self.shared.anchor;
-        if t >= at {
-            ns.saturating_add(u64::try_from((t - at).as_nanos()).unwrap_or(u64::MAX))
-        } else {
-            ns.saturating_sub(u64::try_from((at - t).as_nanos()).unwrap_or(u64::MAX))
-        }
+        self.shared.clock.ns(t)
     }
 
     fn send(&self, record: Record) {
@@ -139,12 +139,12 @@ impl PlanRecorder {
 
     /// Records a request received at `arrival`.
     pub fn request(&self, request: &PlanRequest, arrival: Instant) {
-        self.send(Record::Request(self.log_time(arrival), Box::new(request.clone())));
+        self.send(Record::Request(self.log_time(arrival), Arc::new(request.clone())));
     }
 
     /// Records an answer given at `at`.
     pub fn response(&self, response: PlanResponse, at: Instant) {
-        self.send(Record::Response(self.log_time(at), Box::new(response)));
+        self.send(Record::Response(self.log_time(at), Arc::new(response)));
     }
 
     /// Records a statistics document.
@@ -158,19 +158,13 @@ impl PlanRecorder {
     }
 
     /// Records `request` now and returns `reply` wrapped so that it records the answer after
-    /// passing it on (the copy costs a memcpy; encoding happens on the writer thread).
+    /// passing it on (the copy costs a memcpy; encoding happens on the writer thread): the
+    /// recorder as the only [`PlanObserver`] of [`Observers::wrap_reply`].
     pub fn wrap_reply<F>(&self, request: &PlanRequest, arrival: Instant, reply: F) -> impl FnOnce(PlanResponse) + Send
     where
-        F: FnOnce(PlanResponse) + Send,
+        F: FnOnce(PlanResponse) + Send + 'static,
     {
-        self.request(request, arrival);
-        let recorder = self.clone();
-        move |response: PlanResponse| {
-            let at = Instant::now();
-            let copy = response.clone();
-            reply(response);
-            recorder.response(copy, at);
-        }
+        Observers::new(vec![Arc::new(self.clone())]).wrap_reply(request, arrival, reply)
     }
 
     /// Records dropped so far.
@@ -197,6 +191,29 @@ impl PlanRecorder {
             messages,
             dropped: self.dropped(),
         })
+    }
+}
+
+/// The service's recorder: requests and answers shared, not copied again.
+impl PlanObserver for PlanRecorder {
+    fn name(&self) -> &'static str {
+        "recorder"
+    }
+
+    fn request(&self, request: &Arc<PlanRequest>, arrival: Instant) {
+        self.send(Record::Request(self.log_time(arrival), Arc::clone(request)));
+    }
+
+    fn response(&self, _request: &Arc<PlanRequest>, response: &Arc<PlanResponse>, at: Instant) {
+        self.send(Record::Response(self.log_time(at), Arc::clone(response)));
+    }
+
+    fn stats(&self, json: &[u8], at: Instant) {
+        self.send(Record::Stats(self.log_time(at), json.to_vec()));
+    }
+
+    fn dropped(&self) -> u64 {
+        PlanRecorder::dropped(self)
     }
 }
 

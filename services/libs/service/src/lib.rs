@@ -5,8 +5,9 @@
 //!   callback is called exactly once, by a worker, by the deadline watchdog, or at once for
 //!   a request that fails a check or finds the service overloaded. Requests wait in a fair
 //!   queue (round-robin across vehicles, a share and a rate per vehicle).
-//! * Front ends: [`iceoryx2_front`] (shared memory, this machine) and [`zenoh_front`]
-//!   (queries across machines, the statistics publication, the instance's liveliness).
+//! * Front ends: [`iceoryx2_front`] (shared memory, this machine), [`zenoh_front`] (queries
+//!   across machines, the statistics publication, the instance's liveliness) and
+//!   [`ros2_front`] (a ROS 2 node: a service, the decisions and RViz markers on topics).
 //! * [`config_file`]: the planner's TOML configuration with the service's `[service]` table.
 //!
 //! The request life cycle, the threads and the flags are in docs/service.md.
@@ -14,6 +15,7 @@
 pub mod config_file;
 mod fair_queue;
 pub mod iceoryx2_front;
+pub mod ros2_front;
 mod service;
 pub mod zenoh_front;
 

@@ -13,7 +13,7 @@
 //!   permitted and computes the fallback ahead of the deadline (`service/watchdog.rs`).
 //! * A request already older than its deadline by its `sent_at_ns`, on arrival or when a
 //!   worker takes it, gets the fallback marked [`protocol::Layer::StaleFallback`], unsolved.
-//! * With a signing key every answer is signed on its way out ([`protocol::signing`]).
+//! * With a signing key every answer is signed on its way out ([`protocol::ResponseSigner`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
@@ -84,8 +84,10 @@ pub struct ServiceConfig {
     pub watchdog_rt_priority: Option<i32>,
     /// TEST ONLY: sleep this long before every solve, to force the watchdog.
     pub inject_solve_delay: Duration,
-    /// Records every decoded request and its answer (`planner serve --record`).
-    pub recorder: Option<recording::PlanRecorder>,
+    /// See every decoded request (not the readiness probes) and its answer: the recorder
+    /// (`planner serve --record`), the live view (`--foxglove`). Called on the answer path;
+    /// each returns at once (recording::PlanObserver).
+    pub observers: recording::Observers,
 }
 
 impl Default for ServiceConfig {
@@ -103,7 +105,7 @@ impl Default for ServiceConfig {
             worker_nice: WORKER_NICE,
             watchdog_rt_priority: Some(WATCHDOG_RT_PRIORITY),
             inject_solve_delay: Duration::ZERO,
-            recorder: None,
+            observers: recording::Observers::default(),
         }
     }
 }
@@ -382,11 +384,12 @@ impl Service {
     /// Submits a decoded request. The reply is called exactly once.
     pub fn submit(&self, request: PlanRequest, arrival: Instant, reply: Reply) {
         let probe = request.is_probe();
-        let reply: Reply = match &self.config.recorder {
-            Some(recorder) if !probe => Box::new(recorder.wrap_reply(&request, arrival, reply)),
-            _ => reply,
+        let reply: Reply = if probe || self.config.observers.is_empty() {
+            reply
+        } else {
+            self.config.observers.wrap_reply(&request, arrival, reply)
         };
-        // Signed before it is recorded: the recording holds what was sent.
+        // Signed before the observers see it: the recording holds what was sent.
         let reply = self.signed(reply);
         // Every check, once; a probe fails the first (its version).
         let request = match request.validate(&self.planner_config) {

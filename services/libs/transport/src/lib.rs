@@ -58,6 +58,14 @@ pub enum ChannelError {
     /// unanswered.
     #[error("a request of {bytes} bytes: the planner receives at most {max} (Zenoh drops larger ones unanswered)")]
     RequestTooLarge { bytes: usize, max: usize },
+    /// A channel defined outside this crate failed (the simulator's ROS 2 channel).
+    #[error("{transport}")]
+    Other {
+        /// The transport's name.
+        transport: &'static str,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The planner did not answer the readiness probe in time.
     #[error("the planner {at} does not answer")]
     NotReady {

@@ -1,6 +1,6 @@
 //! The dense simplex's tableau and its pivot rules.
 
-use super::{Pricing, SmallLp, SmallLpError, PIVOT_TOL, PRIMAL_TOL, RATIO_TIE};
+use crate::simplex::{DenseLp, Error, Pricing, PIVOT_TOL, PRIMAL_TOL, RATIO_TIE};
 
 /// A reduced cost this close to zero may sit at either bound on a restart.
 const DUAL_ZERO: f64 = 1e-9;
@@ -9,7 +9,7 @@ const DUAL_ZERO: f64 = 1e-9;
 /// `0..n` are the columns, `n..n + m` the row activities. A solved tableau is also the start
 /// of a re-solve with other bounds: its reduced costs do not depend on them.
 #[derive(Clone)]
-pub(super) struct Tableau {
+pub(crate) struct Tableau {
     n: usize,
     m: usize,
     /// `m x n`, row-major.
@@ -18,14 +18,14 @@ pub(super) struct Tableau {
     d: Vec<f64>,
     lower: Vec<f64>,
     upper: Vec<f64>,
-    pub(super) basic: Vec<usize>,
-    pub(super) nonbasic: Vec<usize>,
+    pub(crate) basic: Vec<usize>,
+    pub(crate) nonbasic: Vec<usize>,
     /// Value of each nonbasic position (one of its bounds).
-    pub(super) value: Vec<f64>,
+    pub(crate) value: Vec<f64>,
     at_upper: Vec<bool>,
     /// Value of each basic position: recomputed from the nonbasic values by
     /// `update_basic_values`, and carried along by each flip and pivot in between.
-    pub(super) beta: Vec<f64>,
+    pub(crate) beta: Vec<f64>,
     /// 1.0 where a nonbasic position holds a row activity, else 0.0 (kept by `pivot`; the
     /// steepest-edge weights sum over these).
     logical_mask: Vec<f64>,
@@ -35,7 +35,7 @@ pub(super) struct Tableau {
 }
 
 impl Tableau {
-    pub(super) fn new(lp: &SmallLp) -> Result<Self, SmallLpError> {
+    pub(crate) fn new(lp: &DenseLp) -> Result<Self, Error> {
         let (n, m) = (lp.num_cols(), lp.num_rows());
         let mut t = vec![0.0; m * n];
         for r in 0..m {
@@ -51,7 +51,7 @@ impl Tableau {
             let up = cost < 0.0 || (cost == 0.0 && lo == f64::NEG_INFINITY);
             let v = if up { hi } else { lo };
             if !v.is_finite() {
-                return Err(SmallLpError::NoDualStart(c));
+                return Err(Error::NoDualStart(c));
             }
             value.push(v);
             at_upper.push(up);
@@ -75,14 +75,14 @@ impl Tableau {
     }
 
     /// The dimensions, for the solve's pivot limits.
-    pub(super) fn size(&self) -> (usize, usize) {
+    pub(crate) fn size(&self) -> (usize, usize) {
         (self.m, self.n)
     }
 
     /// Make this solved tableau the start for `lp`, the same LP with other bounds: each
     /// nonbasic position moves to its bound on the side its reduced cost prefers. `false`
     /// when that bound is infinite (a fresh tableau must start instead).
-    pub(super) fn restart(&mut self, lp: &SmallLp) -> bool {
+    pub(crate) fn restart(&mut self, lp: &DenseLp) -> bool {
         if (lp.num_cols(), lp.num_rows()) != (self.n, self.m) {
             return false;
         }
@@ -117,11 +117,11 @@ impl Tableau {
         true
     }
 
-    pub(super) fn update_basic_values(&mut self, pricing: Pricing) {
+    pub(crate) fn update_basic_values(&mut self, pricing: Pricing) {
         for (i, b) in self.beta.iter_mut().enumerate() {
             let row = &self.t[i * self.n..(i + 1) * self.n];
             *b = match pricing {
-                // The evaluation's sums keep their order (its decisions stay bit for bit).
+                // Summed in order: the largest-violation rule's results stay bit for bit.
                 Pricing::LargestViolation => row.iter().zip(&self.value).map(|(t, v)| t * v).sum(),
                 Pricing::SteepestEdge => dot(row, &self.value),
             };
@@ -135,7 +135,7 @@ impl Tableau {
 
     /// The basic position to leave: the largest violation, or with `bland` the lowest
     /// variable index among the violated.
-    pub(super) fn leaving(&self, bland: bool) -> Option<usize> {
+    pub(crate) fn leaving(&self, bland: bool) -> Option<usize> {
         let mut best: Option<(usize, f64)> = None;
         for i in 0..self.m {
             let viol = self.violation(i);
@@ -157,7 +157,7 @@ impl Tableau {
     /// The violated basic position with the largest `violation^2 / |e_p B^-1|^2`. Row `p`
     /// of `B^-1` is read off the tableau: its entries at the nonbasic row activities, and a
     /// 1 where `p` itself holds a row activity.
-    pub(super) fn leaving_steepest(&self) -> Option<usize> {
+    pub(crate) fn leaving_steepest(&self) -> Option<usize> {
         let mut best: Option<(usize, f64)> = None;
         for i in 0..self.m {
             let viol = self.violation(i);
@@ -179,7 +179,7 @@ impl Tableau {
     /// ratio; each boxed one whose full move leaves the row still violated flips to its
     /// other bound, and the first that would not is the entering position. `None` when
     /// every candidate flips and the row stays violated: the LP is infeasible.
-    pub(super) fn entering_flipping(&mut self, p: usize) -> Option<usize> {
+    pub(crate) fn entering_flipping(&mut self, p: usize) -> Option<usize> {
         let n = self.n;
         let leaving = self.basic[p];
         let increase = self.beta[p] < self.lower[leaving];
@@ -249,7 +249,7 @@ impl Tableau {
 
     /// The nonbasic position that enters for leaving row `p` (the dual ratio test), or
     /// `None` when none can move the row towards its bound: the LP is infeasible.
-    pub(super) fn entering(&self, p: usize, bland: bool) -> Option<usize> {
+    pub(crate) fn entering(&self, p: usize, bland: bool) -> Option<usize> {
         let increase = self.beta[p] < self.lower[self.basic[p]];
         let row = &self.t[p * self.n..(p + 1) * self.n];
         let mut best: Option<(usize, f64)> = None;
@@ -280,7 +280,7 @@ impl Tableau {
 
     /// Exchange basic position `p` with nonbasic position `q`; the leaving variable rests
     /// at the bound it violated.
-    pub(super) fn pivot(&mut self, p: usize, q: usize) {
+    pub(crate) fn pivot(&mut self, p: usize, q: usize) {
         let n = self.n;
         let leaving = self.basic[p];
         let increase = self.beta[p] < self.lower[leaving];

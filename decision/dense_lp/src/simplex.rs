@@ -1,38 +1,21 @@
-//! A dense bounded-variable dual simplex for the exact evaluation's LP and for the MILP's
-//! relaxations in the small branch and bound (`milp/branch.rs`), where a child node
-//! re-solves from its parent's final tableau ([`SmallLp::solve_from`]).
-//!
-//! That LP has at most `H <= 6` boxed accelerations, a few non-negative auxiliary columns
-//! with non-negative costs and some tens of rows once the rows a box already satisfies are
-//! dropped. HiGHS solves it exactly but pays a fixed cost per run far above the pivoting
-//! itself, and the oracle runs it for every sequence it scores. Here the whole tableau is a
-//! dense `rows x columns` array updated by exchange pivots.
-//!
-//! Why the dual simplex: every column is boxed or has a non-negative cost, so putting each
-//! column at the bound its cost prefers is dual feasible at once, with no phase one; the row
-//! logicals start basic. A row that stays violated with no column able to move it proves the
-//! LP infeasible. Ties are the rule (the accelerations cost nothing, rows repeat), so after a
-//! bounded number of pivots the choice switches to Bland's rule, which cannot cycle; a hard
-//! pivot limit and a final check of every row against the original data turn any numerical
-//! failure into an error, on which the caller falls back to HiGHS.
+//! The dense bounded-variable dual simplex: the LP, its solve and its errors.
 
-use tableau::Tableau;
-use thiserror::Error;
+use crate::tableau::Tableau;
 
 /// Feasibility tolerance on a basic variable's bounds (rows carry metres and m/s).
 pub const PRIMAL_TOL: f64 = 1e-9;
 /// Smallest tableau entry that may be pivoted on.
-const PIVOT_TOL: f64 = 1e-9;
+pub(crate) const PIVOT_TOL: f64 = 1e-9;
 /// What the point may violate an original row or bound by after the pivots, absolute.
 pub const CHECK_TOL: f64 = 1e-7;
 /// Ratios this close count as tied.
-const RATIO_TIE: f64 = 1e-12;
+pub(crate) const RATIO_TIE: f64 = 1e-12;
 /// Pivots between recomputations of the basic values (carried along in between).
 const REFRESH_EVERY: usize = 16;
 
-/// Why the dense simplex gave no verdict (the caller then asks HiGHS).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
-pub enum SmallLpError {
+/// Why the dense simplex gave no verdict (a caller may then ask another solver).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum Error {
     /// A column whose cost pushes it towards an infinite bound: no dual feasible start.
     #[error("column {0} has no finite bound on the side its cost prefers")]
     NoDualStart(usize),
@@ -62,20 +45,20 @@ impl std::fmt::Display for Violated {
 /// How the dual simplex picks its pivots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Pricing {
-    /// The most violated row leaves, the smallest dual ratio enters (the exact evaluation's
-    /// rule: its LPs have a handful of columns).
+    /// The most violated row leaves, the smallest dual ratio enters (for LPs of a handful
+    /// of columns).
     #[default]
     LargestViolation,
     /// Dual steepest edge (exact weights, read off the tableau) with the bound-flipping
     /// ratio test: boxed columns whose ratio comes first jump to their other bound instead
-    /// of entering, as long as the leaving row stays violated. On the MILP's relaxation,
-    /// whose columns are mostly `[0, 1]` boxes, that takes several times fewer pivots.
+    /// of entering, as long as the leaving row stays violated. On relaxations whose columns
+    /// are mostly `[0, 1]` boxes that takes several times fewer pivots.
     SteepestEdge,
 }
 
-/// The final tableau of an optimal solve (see [`SmallLp::solve_from`]).
+/// The final tableau of an optimal solve (see [`DenseLp::solve_from`]).
 #[derive(Clone)]
-pub struct FinalTableau(Tableau);
+pub struct FinalTableau(pub(crate) Tableau);
 
 /// How a solve ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -86,18 +69,19 @@ pub enum LpOutcome {
 
 /// `min offset + cost . x` subject to `row_lower <= A x <= row_upper`, `lower <= x <= upper`.
 #[derive(Debug, Clone, Default)]
-pub struct SmallLp {
+pub struct DenseLp {
     offset: f64,
-    cost: Vec<f64>,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
-    row_lower: Vec<f64>,
-    row_upper: Vec<f64>,
+    pub(crate) cost: Vec<f64>,
+    pub(crate) lower: Vec<f64>,
+    pub(crate) upper: Vec<f64>,
+    pub(crate) row_lower: Vec<f64>,
+    pub(crate) row_upper: Vec<f64>,
     row_start: Vec<usize>,
     terms: Vec<(usize, f64)>,
 }
 
-impl SmallLp {
+impl DenseLp {
+    #[inline]
     pub fn add_col(&mut self, cost: f64, lower: f64, upper: f64) -> usize {
         self.cost.push(cost);
         self.lower.push(lower);
@@ -106,16 +90,19 @@ impl SmallLp {
     }
 
     /// Add `cost` to the objective coefficient of `col`.
+    #[inline]
     pub fn add_cost(&mut self, col: usize, cost: f64) {
         self.cost[col] += cost;
     }
 
     /// Add a constant to the objective.
+    #[inline]
     pub fn add_constant(&mut self, value: f64) {
         self.offset += value;
     }
 
     /// Add `lower <= sum(coef * col) <= upper`; repeated columns add up.
+    #[inline]
     pub fn add_row(&mut self, lower: f64, upper: f64, terms: &[(usize, f64)]) {
         self.row_start.push(self.terms.len());
         self.terms.extend_from_slice(terms);
@@ -123,58 +110,68 @@ impl SmallLp {
         self.row_upper.push(upper);
     }
 
+    #[inline]
     pub fn num_cols(&self) -> usize {
         self.cost.len()
     }
 
+    #[inline]
     pub fn num_rows(&self) -> usize {
         self.row_lower.len()
     }
 
+    #[inline]
     pub fn cost(&self, col: usize) -> f64 {
         self.cost[col]
     }
 
+    #[inline]
     pub fn bounds(&self, col: usize) -> (f64, f64) {
         (self.lower[col], self.upper[col])
     }
 
+    #[inline]
     pub fn row_bounds(&self, row: usize) -> (f64, f64) {
         (self.row_lower[row], self.row_upper[row])
     }
 
+    #[inline]
     pub fn row_terms(&self, row: usize) -> &[(usize, f64)] {
         let end = self.row_start.get(row + 1).copied().unwrap_or(self.terms.len());
         &self.terms[self.row_start[row]..end]
     }
 
+    #[inline]
     pub fn objective_constant(&self) -> f64 {
         self.offset
     }
 
     /// `A x` of one row.
+    #[inline]
     pub fn activity(&self, row: usize, x: &[f64]) -> f64 {
         self.row_terms(row).iter().map(|&(c, a)| a * x[c]).sum()
     }
 
     /// The objective at `x`.
+    #[inline]
     pub fn objective(&self, x: &[f64]) -> f64 {
         self.offset + self.cost.iter().zip(x).map(|(c, x)| c * x).sum::<f64>()
     }
 
     /// Replace the box of `col`.
+    #[inline]
     pub fn set_bounds(&mut self, col: usize, lower: f64, upper: f64) {
         self.lower[col] = lower;
         self.upper[col] = upper;
     }
 
     /// Solve by the dual simplex; see the module documentation.
-    pub fn solve(&self) -> Result<LpOutcome, SmallLpError> {
+    pub fn solve(&self) -> Result<LpOutcome, Error> {
         self.solve_with(Pricing::LargestViolation)
     }
 
     /// Solve by the dual simplex with the given pivot rules.
-    pub fn solve_with(&self, pricing: Pricing) -> Result<LpOutcome, SmallLpError> {
+    pub fn solve_with(&self, pricing: Pricing) -> Result<LpOutcome, Error> {
         self.solve_from(pricing, None).map(|(outcome, _)| outcome)
     }
 
@@ -186,7 +183,7 @@ impl SmallLp {
         &self,
         pricing: Pricing,
         start: Option<FinalTableau>,
-    ) -> Result<(LpOutcome, Option<FinalTableau>), SmallLpError> {
+    ) -> Result<(LpOutcome, Option<FinalTableau>), Error> {
         let restarted = start.and_then(|FinalTableau(mut t)| t.restart(self).then_some(t));
         let mut tableau = match restarted {
             Some(t) => t,
@@ -196,7 +193,7 @@ impl SmallLp {
         let limit = 50 * (m + n) + 200;
         // Largest-violation pivoting is faster; Bland's rule past this point cannot cycle.
         let bland_after = 4 * (m + n) + 20;
-        // Steepest edge carries the basic values through its pivots (the evaluation's rule
+        // Steepest edge carries the basic values through its pivots (the largest-violation rule
         // recomputes them every time, as it always has); optimality and infeasibility are
         // only declared on recomputed ones.
         let carried = pricing == Pricing::SteepestEdge;
@@ -240,11 +237,11 @@ impl SmallLp {
             tableau.pivot(p, q);
             since_refresh += 1;
         }
-        Err(SmallLpError::PivotLimit(limit))
+        Err(Error::PivotLimit(limit))
     }
 
     /// Read the point off the final tableau and check it against the original data.
-    fn finish(&self, t: &Tableau) -> Result<LpOutcome, SmallLpError> {
+    fn finish(&self, t: &Tableau) -> Result<LpOutcome, Error> {
         let n = self.num_cols();
         let mut x = vec![0.0; n];
         for (k, &v) in t.nonbasic.iter().enumerate() {
@@ -260,21 +257,16 @@ impl SmallLp {
         }
         for (c, &v) in x.iter().enumerate() {
             if !(v >= self.lower[c] - CHECK_TOL && v <= self.upper[c] + CHECK_TOL) {
-                return Err(SmallLpError::Inaccurate(Violated::Column(c)));
+                return Err(Error::Inaccurate(Violated::Column(c)));
             }
         }
         for r in 0..self.num_rows() {
             let a = self.activity(r, &x);
             if !(a >= self.row_lower[r] - CHECK_TOL && a <= self.row_upper[r] + CHECK_TOL) {
-                return Err(SmallLpError::Inaccurate(Violated::Row(r)));
+                return Err(Error::Inaccurate(Violated::Row(r)));
             }
         }
         let objective = self.objective(&x);
         Ok(LpOutcome::Optimal { x, objective })
     }
 }
-
-mod tableau;
-
-#[cfg(test)]
-pub(crate) mod tests;

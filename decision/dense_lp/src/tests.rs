@@ -1,43 +1,75 @@
-//! The dense simplex against HiGHS on hand-made degenerate LPs and on random ones.
+//! The dense simplex against HiGHS on hand-made degenerate LPs and on random ones, and on
+//! chains of re-solves from a parent's tableau.
 
-use super::*;
-use crate::highs_solver::{with_thread_lp, MipModel, MipStatus};
+use crate::simplex::*;
+use highs::{HighsModelStatus, RowProblem, Sense};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const INF: f64 = f64::INFINITY;
 
-/// HiGHS's verdict on the same LP: `Some(objective)` or `None` (infeasible).
-fn by_highs(lp: &SmallLp) -> Option<f64> {
-    let mut m = MipModel::default();
-    for c in 0..lp.num_cols() {
-        let (lo, hi) = lp.bounds(c);
-        m.add_col(lp.cost(c), lo, hi, false);
-    }
+/// The workspace links every binary with `--wrap` of HiGHS's physical core count
+/// (`.cargo/config.toml`, `decision/src/highs_cores.rs`); this test binary links HiGHS without
+/// `decision`, so it answers the wrapped call itself. HiGHS only logs the number (and would
+/// size its thread pool by it with `threads = 0`; these tests set 1). Unused where the
+/// flag is not set.
+#[no_mangle]
+extern "C" fn __wrap__ZN5highs8parallel20available_core_countEv() -> u32 {
+    1
+}
+
+/// HiGHS's verdict on the same LP: `Some(objective)` or `None` (infeasible). HiGHS takes a
+/// column once per row: repeated ones are summed (in order) and zeros dropped.
+pub(crate) fn by_highs(lp: &DenseLp) -> Option<f64> {
+    let mut problem = RowProblem::default();
+    let cols: Vec<_> = (0..lp.num_cols())
+        .map(|c| {
+            let (lo, hi) = lp.bounds(c);
+            problem.add_column(lp.cost(c), lo..=hi)
+        })
+        .collect();
     for r in 0..lp.num_rows() {
+        let mut terms = lp.row_terms(r).to_vec();
+        terms.sort_by_key(|t| t.0);
+        let mut merged: Vec<(usize, f64)> = Vec::new();
+        for (c, a) in terms {
+            match merged.last_mut() {
+                Some(last) if last.0 == c => last.1 += a,
+                _ => merged.push((c, a)),
+            }
+        }
         let (lo, hi) = lp.row_bounds(r);
-        m.add_row(lo, hi, &mut lp.row_terms(r).to_vec());
+        let row: Vec<_> = merged
+            .into_iter()
+            .filter(|t| t.1 != 0.0)
+            .map(|(c, a)| (cols[c], a))
+            .collect();
+        problem.add_row(lo..=hi, row);
     }
-    let result = with_thread_lp(|s| s.solve(&m, None)).unwrap();
-    match result.status {
-        MipStatus::Optimal => Some(result.objective + lp.objective_constant()),
-        MipStatus::Infeasible => None,
+    let mut model = problem.optimise(Sense::Minimise);
+    model.make_quiet();
+    model.set_option("presolve", "off");
+    model.set_option("threads", 1);
+    let solved = model.solve();
+    match solved.status() {
+        HighsModelStatus::Optimal => Some(solved.objective_value() + lp.objective_constant()),
+        HighsModelStatus::Infeasible => None,
         other => panic!("HiGHS: {other:?}"),
     }
 }
 
 /// Solve densely, check the point, and compare with HiGHS.
-fn agree(lp: &SmallLp) -> Option<f64> {
+fn agree(lp: &DenseLp) -> Option<f64> {
     agree_with(lp, Pricing::LargestViolation)
 }
 
 /// [`agree`] with the given pivot rules.
-pub(crate) fn agree_with(lp: &SmallLp, pricing: Pricing) -> Option<f64> {
+pub(crate) fn agree_with(lp: &DenseLp, pricing: Pricing) -> Option<f64> {
     checked(lp, &lp.solve_with(pricing).expect("dense simplex"))
 }
 
 /// Check the dense outcome's point against `lp` and its verdict against HiGHS's.
-fn checked(lp: &SmallLp, dense: &LpOutcome) -> Option<f64> {
+fn checked(lp: &DenseLp, dense: &LpOutcome) -> Option<f64> {
     let highs = by_highs(lp);
     match (dense, highs) {
         (LpOutcome::Optimal { x, objective }, Some(h)) => {
@@ -67,7 +99,7 @@ fn checked(lp: &SmallLp, dense: &LpOutcome) -> Option<f64> {
 
 #[test]
 fn fixed_boxes_leave_only_the_rows_to_check() {
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let u = [lp.add_col(0.0, -2.0, -2.0), lp.add_col(0.0, 1.0, 1.0)];
     let t = lp.add_col(3.0, 0.0, INF);
     lp.add_row(0.5, INF, &[(t, 1.0), (u[0], 1.0), (u[1], 1.0)]);
@@ -79,7 +111,7 @@ fn fixed_boxes_leave_only_the_rows_to_check() {
 
 #[test]
 fn duplicated_and_redundant_rows_are_degenerate_not_harmful() {
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let u: Vec<usize> = (0..4).map(|_| lp.add_col(0.0, -3.0, 2.0)).collect();
     let dev = lp.add_col(1.0, 0.0, INF);
     // dev >= 1 - sum u, repeated; the same row in several scalings; rows the boxes satisfy.
@@ -100,7 +132,7 @@ fn duplicated_and_redundant_rows_are_degenerate_not_harmful() {
 
 #[test]
 fn an_infeasible_row_set_is_reported_infeasible() {
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let u = [lp.add_col(0.0, -4.0, 1.0), lp.add_col(0.0, -4.0, 1.0)];
     let s = lp.add_col(5.0, 0.0, 0.5);
     // u0 + u1 + s >= 1.6 needs u0 + u1 >= 1.1, but u0 - u1 >= 1 and u1 >= 0.2 leave u0 >= 1.2.
@@ -109,12 +141,12 @@ fn an_infeasible_row_set_is_reported_infeasible() {
     lp.add_row(0.2, INF, &[(u[1], 1.0)]);
     assert_eq!(agree(&lp), None);
     // Equality rows that contradict each other.
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let x = lp.add_col(1.0, -INF, INF);
     lp.add_row(1.0, 1.0, &[(x, 1.0)]);
     lp.add_row(2.0, 2.0, &[(x, 1.0)]);
-    assert_eq!(lp.solve(), Err(SmallLpError::NoDualStart(x)));
-    let mut lp = SmallLp::default();
+    assert_eq!(lp.solve(), Err(Error::NoDualStart(x)));
+    let mut lp = DenseLp::default();
     let x = lp.add_col(1.0, 0.0, INF);
     lp.add_row(1.0, 1.0, &[(x, 1.0)]);
     lp.add_row(2.0, 2.0, &[(x, 1.0)]);
@@ -124,19 +156,19 @@ fn an_infeasible_row_set_is_reported_infeasible() {
 #[test]
 fn a_direction_unbounded_by_the_rows_is_bounded_by_the_boxes() {
     // Minimise -u0 - 2 u1 (the boxes hold it) with a row that only bounds u0 - u1 below.
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let u = [lp.add_col(-1.0, -2.0, 1.5), lp.add_col(-2.0, -2.0, 0.5)];
     lp.add_row(-1.0, INF, &[(u[0], 1.0), (u[1], -1.0)]);
     assert_eq!(agree(&lp), Some(-2.5));
     // A cost that pulls a column towards an infinite bound cannot start the dual simplex.
     let t = lp.add_col(-1.0, 0.0, INF);
     lp.add_row(0.0, INF, &[(t, 1.0), (u[0], 1.0)]);
-    assert_eq!(lp.solve(), Err(SmallLpError::NoDualStart(t)));
+    assert_eq!(lp.solve(), Err(Error::NoDualStart(t)));
 }
 
 #[test]
 fn a_constant_and_costs_added_later_count() {
-    let mut lp = SmallLp::default();
+    let mut lp = DenseLp::default();
     let u = lp.add_col(0.0, -1.0, 1.0);
     lp.add_cost(u, -2.0);
     lp.add_constant(7.0);
@@ -146,8 +178,8 @@ fn a_constant_and_costs_added_later_count() {
 /// A random LP shaped like the evaluation's: boxed accelerations (some fixed), hinge columns
 /// with non-negative costs, bounded slack columns, rows that repeat with different right-hand
 /// sides, cumulative speed rows.
-fn random_lp(rng: &mut ChaCha8Rng) -> SmallLp {
-    let mut lp = SmallLp::default();
+fn random_lp(rng: &mut ChaCha8Rng) -> DenseLp {
+    let mut lp = DenseLp::default();
     let h = rng.random_range(1..=6);
     let u: Vec<usize> = (0..h)
         .map(|_| {
@@ -195,7 +227,7 @@ fn random_lp(rng: &mut ChaCha8Rng) -> SmallLp {
 
 /// `count` random LPs from `generate` agree with HiGHS under both pivot rules; returns the
 /// numbers of optimal and infeasible ones (the same under both rules).
-fn random_lps_agree(seed: u64, count: usize, generate: fn(&mut ChaCha8Rng) -> SmallLp) -> (usize, usize) {
+fn random_lps_agree(seed: u64, count: usize, generate: fn(&mut ChaCha8Rng) -> DenseLp) -> (usize, usize) {
     let mut tally = Vec::new();
     for pricing in [Pricing::LargestViolation, Pricing::SteepestEdge] {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -220,8 +252,8 @@ fn random_evaluation_shaped_lps_agree_with_highs() {
 /// A random relaxation shaped like the MILP's: `[0, 1]` one-hots (each summing to 1) with a
 /// priced change between steps, a boxed input, big-M rows switched by the one-hots, where
 /// flipping a box instead of pivoting it in is the common move.
-fn random_relaxation(rng: &mut ChaCha8Rng) -> SmallLp {
-    let mut lp = SmallLp::default();
+fn random_relaxation(rng: &mut ChaCha8Rng) -> DenseLp {
+    let mut lp = DenseLp::default();
     let steps = rng.random_range(1..=4);
     let width = rng.random_range(2..=4);
     let mut previous: Option<Vec<usize>> = None;
