@@ -284,14 +284,17 @@ pub fn run(args: ServeArgs) -> Result<()> {
             &args.zenoh_listen,
             &args.zenoh_connect,
         )?;
-        if args.zenoh_config.is_none() {
-            // As in the shipped planner files: a router drops a hung planner after its
-            // lease; and a client session, which fails at once when its router is not up
-            // yet, waits for it 30 s (then fails, so that systemd restarts the planner).
-            let mut settings = vec![("transport/link/tx", transport::zenoh::planner_lease().to_string())];
-            if mode == transport::zenoh::Mode::Client {
-                settings.push(("connect/timeout_ms", "30000".into()));
-            }
+        if args.zenoh_config.is_none() && mode == transport::zenoh::Mode::Client {
+            // As in the shipped planner files, behind a router: the router drops a hung
+            // planner after its short lease, so plain-key clients reach another instance;
+            // and the session, which fails at once when its router is not up yet, waits for
+            // it 30 s (then fails, so that systemd restarts the planner). A planner that
+            // listens itself keeps the 3 s lease: its vehicles are connected to it alone,
+            // and a shorter one would only drop their queries during a short stall.
+            let settings = [
+                ("transport/link/tx", transport::zenoh::planner_lease().to_string()),
+                ("connect/timeout_ms", "30000".into()),
+            ];
             for (key, value) in settings {
                 config
                     .insert_json5(key, &value)
