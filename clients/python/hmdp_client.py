@@ -22,10 +22,13 @@ Output (stdout, one JSON object per line):
 * a rejection: ``{"step", "vehicle_id", "sequence", "rejected": {"reason", "field"}}``;
 * with ``--stats``, last: ``{"stats": {...}}``, the planner's statistics document.
 
-With ``--planner-key`` (the ``.pub`` file of ``planner keygen``) every answer must carry the
-planner's signature: an answer that does not verify (a forged planner, an unsigned answer) is
-refused and counted on stderr, and the client waits for the real one until its timeout.
-Without it every answer is taken, signed or not (docs/protocol.md, "Authentication").
+With ``--planner-key`` (the ``.pub`` file of ``planner keygen``) an answer that does not
+verify (forged, unsigned) is refused, counted on stderr, and the real one awaited until the
+timeout. Without a key every answer is taken (docs/protocol.md, "Authentication"): so the
+client refuses an endpoint beyond this host, where anyone could answer, unless told
+``--insecure`` (then said on stderr, in capitals). Loopback demos need no key. A request above
+the planner's message limit (64 KiB with Zenoh's headers) is refused before it is sent: Zenoh
+would drop it on the way, unanswered.
 
 Every request carries its send time (``sent_at_ns``, Unix time in ns): a planner that gets
 it older than its deadline answers ``stale_fallback`` at once.
@@ -50,7 +53,6 @@ import argparse
 import copy
 import json
 import queue
-import re
 import sys
 import threading
 import time
@@ -58,20 +60,25 @@ import time
 import zenoh
 
 import hmdp_signing
+from hmdp_instances import (  # noqa: F401  (part of this client's API)
+    ALIVE_KEYS,
+    RETRY_AFTER_S,
+    SUSPECT_FOR_S,
+    Instances,
+    instance_of_alive_key,
+    rendezvous_order,
+    rendezvous_score,
+)
 
 PLAN_KEY = "hmdp/planner/plan"  # queryable of `planner serve` (protocol::names)
-ALIVE_KEYS = "hmdp/planner/alive/*"  # the instances' liveliness tokens (protocol::names)
-# An instance id: one plain key chunk (transport::zenoh::instances::check_instance_id).
-INSTANCE_ID = re.compile(r"[A-Za-z0-9._-]{1,64}\Z")
-# Failover between instances (transport::zenoh::Failover's defaults): without a valid answer
-# this long after sending, the request goes once to the next instance, and the silent one is
-# tried last for SUSPECT_FOR_S.
-RETRY_AFTER_S = 0.15
-SUSPECT_FOR_S = 2.0
 STATS_KEY = "hmdp/planner/stats"  # statistics, published every second
 PROTOCOL_VERSION = 3  # also in the iceoryx2 type names: hmdp::PlanRequest/v3
 # The JSON form is chosen by the query's encoding; anything else is read as bincode.
 JSON_ENCODING = "application/json"
+# Every Zenoh session of the project drops a message above 64 KiB while reassembling it,
+# unanswered (transport/link/rx/max_message_size); the key expression and Zenoh's headers
+# travel with the payload (transport::zenoh::check_request_size, the same bound).
+MAX_REQUEST_BYTES = 64 * 1024 - 1024
 
 # Planner period (deploy/planner.toml, timing.step_s): one snapshot per period in --steps.
 STEP_S = 0.4
@@ -119,7 +126,26 @@ class NoAnswer(Exception):
 
 
 class BadInput(Exception):
-    """The request to send cannot be read (exit code 1; the planner was not asked)."""
+    """The request to send cannot be read or sent (exit code 1; the planner was not asked)."""
+
+
+class RequestTooLarge(BadInput):
+    """A request no planner could receive: Zenoh drops it on the way, unanswered."""
+
+
+class Insecure(BadInput):
+    """A planner beyond this host without its public key, and no --insecure."""
+
+
+def check_security(endpoint, verifier, insecure):
+    """Refuses (Insecure) a planner beyond this host whose answers cannot be verified
+    (hmdp_signing.check_endpoint); with `insecure` it warns on stderr instead."""
+    try:
+        warning = hmdp_signing.check_endpoint(endpoint, verifier is not None, insecure)
+    except hmdp_signing.UnverifiedPlanner as e:
+        raise Insecure(str(e)) from e
+    if warning:
+        print(warning, file=sys.stderr)
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -143,105 +169,6 @@ def open_session(endpoint):
         return zenoh.open(config)
     except zenoh.ZError as e:  # nothing listening there: a client session fails to open
         raise NoAnswer(f"cannot connect to {endpoint}: {e}") from e
-
-
-_MASK64 = (1 << 64) - 1
-
-
-def rendezvous_score(vehicle_id, instance):
-    """Rendezvous (highest random weight) score of `instance` for `vehicle_id`: FNV-1a of the
-    instance id mixed with the vehicle id by SplitMix64, bit for bit the Rust channel's
-    (transport::zenoh::instances::rendezvous_score), so that both pick the same instance."""
-    h = 0xCBF29CE484222325
-    for b in instance.encode():
-        h = ((h ^ b) * 0x100000001B3) & _MASK64
-    z = h ^ ((vehicle_id * 0x9E3779B97F4A7C15) & _MASK64)
-    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
-    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
-    return z ^ (z >> 31)
-
-
-def rendezvous_order(vehicle_id, instances):
-    """`instances` in the order a vehicle tries them: highest score first, ties by name."""
-    ranked = sorted((-rendezvous_score(vehicle_id, i), i) for i in instances)
-    return [i for _, i in ranked]
-
-
-def instance_of_alive_key(key):
-    """The instance id in a liveliness token's key, or None if it is not one of ours."""
-    prefix = ALIVE_KEYS[:-1]
-    if not key.startswith(prefix):
-        return None
-    instance = key[len(prefix) :]
-    return instance if INSTANCE_ID.match(instance) else None
-
-
-class Instances:
-    """The planner instances whose liveliness tokens this session sees, those suspected of
-    hanging, and the choice of an instance per vehicle (with one retry on the next; see
-    `ask`). `last_instance` / `last_retries`: who answered the last request, and how often it
-    was sent again."""
-
-    def __init__(self, session, retry_after_s=RETRY_AFTER_S, suspect_for_s=SUSPECT_FOR_S):
-        self.retry_after_s = retry_after_s
-        self.suspect_for_s = suspect_for_s
-        self.last_instance = None
-        self.last_retries = 0
-        self._lock = threading.Lock()
-        self._changed = threading.Condition(self._lock)
-        self._events = 0  # tokens seen (declared or gone), to tell when the history is in
-        self._live = set()
-        self._suspect = {}  # instance -> time.monotonic() until which it is tried last
-        self.subscriber = session.liveliness().declare_subscriber(ALIVE_KEYS, self._on_token, history=True)
-        self._await_history()
-
-    def _await_history(self, first_s=0.5, quiet_s=0.05):
-        """Waits for the tokens present now, before the first request: the subscriber's
-        history arrives asynchronously (a few ms after the declaration, all at once; a
-        liveliness get through hmdp-router returned no token). Up to `first_s` for a first
-        token (a planner without instances has none), then until none came for `quiet_s`."""
-        give_up = time.monotonic() + first_s
-        with self._changed:
-            while self._events == 0 and time.monotonic() < give_up:
-                self._changed.wait(give_up - time.monotonic())
-            seen = -1
-            while self._events and seen != self._events:
-                seen = self._events
-                self._changed.wait(quiet_s)
-
-    def _on_token(self, sample):
-        instance = instance_of_alive_key(str(sample.key_expr))
-        if instance is None:
-            return
-        with self._changed:
-            if sample.kind == zenoh.SampleKind.PUT:
-                # A token declared anew (a restart) wipes the suspicion.
-                self._suspect.pop(instance, None)
-                self._live.add(instance)
-            else:
-                self._live.discard(instance)
-                self._suspect.pop(instance, None)
-            self._events += 1
-            self._changed.notify_all()
-
-    def live(self):
-        """The live instances, by name."""
-        with self._lock:
-            return sorted(self._live)
-
-    def suspect(self, instance):
-        """`instance` left a request unanswered: try it last for `suspect_for_s`."""
-        with self._lock:
-            self._suspect[instance] = time.monotonic() + self.suspect_for_s
-
-    def order(self, vehicle_id):
-        """The live instances in the order `vehicle_id` tries them now: rendezvous order,
-        suspected ones moved to the end (in their rendezvous order)."""
-        now = time.monotonic()
-        with self._lock:
-            self._suspect = {i: until for i, until in self._suspect.items() if until > now}
-            order = rendezvous_order(vehicle_id, self._live)
-            return sorted(order, key=lambda i: i in self._suspect)
 
 
 def _response_of(reply):
@@ -368,10 +295,16 @@ def ask(session, request, timeout_s, verifier=None, refused=None, instances=None
     """
     request["sent_at_ns"] = time.time_ns()
     payload = json.dumps(request).encode()
+    if len(payload) > MAX_REQUEST_BYTES:
+        # Zenoh would drop it on the way and the planner never see it: no answer could come.
+        raise RequestTooLarge(
+            f"a request of {len(payload)} bytes: the planner receives at most {MAX_REQUEST_BYTES} "
+            "(Zenoh drops larger messages unanswered)"
+        )
     vehicle_id = request.get("vehicle_id")
     order = []
     # A vehicle id the planner will reject anyway (not a u64) goes to the plain key.
-    if instances is not None and type(vehicle_id) is int and 0 <= vehicle_id <= _MASK64:
+    if instances is not None and type(vehicle_id) is int and 0 <= vehicle_id < 1 << 64:
         order = instances.order(vehicle_id)
     if order:
         return _ask_instances(session, request, payload, order, timeout_s, verifier, refused, instances)
@@ -497,6 +430,7 @@ def run(args):
         verifier = hmdp_signing.Verifier.from_file(args.planner_key) if args.planner_key else None
     except (OSError, ValueError, ImportError) as e:
         raise BadInput(f"planner key {args.planner_key}: {e}") from e
+    check_security(args.connect, verifier, args.insecure)
     refused = []
     session = open_session(args.connect)
     try:
@@ -516,7 +450,8 @@ def run(args):
                 print(f"rejected: {r['reason']} (field: {r['field'] or '-'})", file=sys.stderr)
                 code = 2
                 break
-            request = next_request(request, response["outcome"]["decided"])
+            if step < args.steps:
+                request = next_request(request, response["outcome"]["decided"])
         if stats is not None:
             # Published every second: at most a little over a second to wait.
             document = stats.wait(2.0)
@@ -541,6 +476,11 @@ def main(argv=None):
     parser.add_argument("--pretty", action="store_true", help="indent the JSON output")
     parser.add_argument(
         "--planner-key", metavar="FILE.pub", help="the planner's public key: refuse answers that do not verify"
+    )
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="without --planner-key, ask a planner beyond this host anyway (its answers are not verified)",
     )
     parser.add_argument(
         "--retry-after",

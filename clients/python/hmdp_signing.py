@@ -6,6 +6,9 @@ the layout docs/protocol.md gives ("bincode form"). Needs the `cryptography` pac
 requirements.txt), imported only when a key is read.
 """
 
+import ipaddress
+import re
+import socket
 import struct
 
 SIGNATURE_LENGTH = 64
@@ -125,3 +128,49 @@ class Verifier:
             self._key.verify(raw, signed_bytes(response))
         except (ValueError, KeyError, TypeError, struct.error, InvalidSignature) as e:
             raise BadSignature("the answer's signature does not verify with the planner's key") from e
+
+
+class UnverifiedPlanner(Exception):
+    """A planner beyond this host whose answers could not be verified (no public key)."""
+
+
+def endpoint_is_loopback(endpoint):
+    """Whether a Zenoh endpoint (``tcp/HOST:PORT``, ``tls/...``, ``unixsock-stream/PATH``)
+    stays on this host: a Unix socket, a loopback address, or a name that resolves to
+    loopback addresses only. A name that does not resolve counts as beyond (the Rust rule,
+    transport::zenoh::security::is_loopback_endpoint)."""
+    locator = re.split(r"[?#]", endpoint, maxsplit=1)[0]
+    protocol, _, address = locator.partition("/")
+    if protocol in ("unixsock-stream", "unixpipe"):
+        return True
+    if protocol not in ("tcp", "tls", "udp", "quic", "ws"):
+        return False
+    host, _, port = address.rpartition(":")
+    host = host.strip("[]")
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, int(port))
+    except (OSError, ValueError):
+        return False
+    return bool(infos) and all(ipaddress.ip_address(info[4][0]).is_loopback for info in infos)
+
+
+def check_endpoint(endpoint, verified, insecure):
+    """Unsigned answers are safe only on this host: beyond it, anyone who can answer on the
+    Zenoh network would be believed. Raises UnverifiedPlanner for a planner beyond this host
+    without a key (`verified` false) unless `insecure`; returns the warning to log loudly
+    in that case, else None."""
+    if verified or endpoint_is_loopback(endpoint):
+        return None
+    if not insecure:
+        raise UnverifiedPlanner(
+            f"the planner at {endpoint} is beyond this host and its answers cannot be verified: "
+            "give its public key with --planner-key FILE.pub, or accept unverified answers with --insecure"
+        )
+    return (
+        f"INSECURE: answers from the planner at {endpoint} are not verified: anyone who can answer on "
+        "that network commands this vehicle; give the planner's public key (--planner-key)"
+    )

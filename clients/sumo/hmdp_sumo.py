@@ -49,6 +49,16 @@ def parse_args(argv):
     p.add_argument("--planner-config", metavar="FILE", help="--config for the spawned planner")
     p.add_argument("--planner-workers", type=int, default=1, help="--workers for the spawned planner (default 1)")
     p.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each answer (default 2)")
+    p.add_argument(
+        "--planner-key",
+        metavar="FILE.pub",
+        help="the planner's public key (planner keygen): answers that do not verify are refused",
+    )
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="without --planner-key, use a planner beyond this host anyway (its answers are not verified)",
+    )
     args = p.parse_args(argv)
     args.drivers = [d.strip() for d in args.drivers.split(",") if d.strip()]
     for d in args.drivers:
@@ -73,7 +83,9 @@ def connect(args, out_dir):
             binary, os.path.join(out_dir, "planner.log"), config=args.planner_config, workers=args.planner_workers
         )
         endpoint = spawned.endpoint
-    link = planner_link.PlannerLink(endpoint, timeout_s=args.timeout)
+    verifier = planner_link.load_verifier(args.planner_key) if args.planner_key else None
+    # A spawned planner listens on loopback and has no key: its answers stay unsigned.
+    link = planner_link.PlannerLink(endpoint, timeout_s=args.timeout, verifier=verifier, insecure=args.insecure)
     alive = (lambda: spawned.process.poll() is None) if spawned else (lambda: True)
     link.wait_ready(alive=alive)
     return link, spawned
@@ -112,6 +124,8 @@ def run(args, out_dir):
             )
     finally:
         if link:
+            if link.refused:
+                print(f"hmdp_sumo: refused {len(link.refused)} answers that did not verify: {link.refused[-1]}", file=sys.stderr)
             link.close()
         if spawned:
             spawned.stop()
@@ -142,7 +156,7 @@ def main(argv=None):
         os.makedirs(out_dir, exist_ok=True)
         try:
             results = run(args, out_dir)
-        except (control.BridgeError, planner_link.NoAnswer, FileNotFoundError, ValueError) as e:
+        except (control.BridgeError, planner_link.NoAnswer, planner_link.BadInput, FileNotFoundError, ValueError) as e:
             print(f"hmdp_sumo: {e}", file=sys.stderr)
             return 1
     results["wall_s"] = time.monotonic() - started

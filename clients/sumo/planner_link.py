@@ -19,6 +19,8 @@ sys.path.insert(0, os.path.join(REPO, "clients", "python"))
 import hmdp_client  # noqa: E402  (the project's Python client: session, query, version check)
 
 NoAnswer = hmdp_client.NoAnswer
+# Refusals before anything is sent: no key for a planner beyond this host, a bad key file.
+BadInput = hmdp_client.BadInput
 
 
 def free_port():
@@ -86,12 +88,29 @@ class SpawnedPlanner:
             return f.read()
 
 
-class PlannerLink:
-    """One Zenoh client session to the planner; `decide` sends a PlanRequest, times the answer."""
+def load_verifier(path):
+    """The planner's public key file (`planner keygen`'s .pub) as a verifier; BadInput if it
+    cannot be read (or the cryptography package is missing)."""
+    try:
+        return hmdp_client.hmdp_signing.Verifier.from_file(path)
+    except (OSError, ValueError, ImportError) as e:
+        raise BadInput(f"planner key {path}: {e}") from e
 
-    def __init__(self, endpoint, timeout_s=2.0):
+
+class PlannerLink:
+    """One Zenoh client session to the planner; `decide` sends a PlanRequest, times the answer.
+
+    With `verifier` (a hmdp_signing.Verifier of the planner's public key) an answer that does
+    not verify is refused and the real one awaited, as in the Python client; `refused` counts
+    them. Without one, a planner beyond this host is refused (BadInput) unless `insecure`.
+    """
+
+    def __init__(self, endpoint, timeout_s=2.0, verifier=None, insecure=False):
+        hmdp_client.check_security(endpoint, verifier, insecure)
         self.endpoint = endpoint
         self.timeout_s = timeout_s
+        self.verifier = verifier
+        self.refused = []
         self.session = None
 
     def wait_ready(self, limit_s=60.0, alive=lambda: True):
@@ -121,7 +140,7 @@ class PlannerLink:
     def decide(self, request):
         """(response dict, round trip in seconds)."""
         start = time.perf_counter()
-        response = hmdp_client.ask(self.session, request, self.timeout_s)
+        response = hmdp_client.ask(self.session, request, self.timeout_s, self.verifier, self.refused)
         return response, time.perf_counter() - start
 
     def close(self):

@@ -94,6 +94,10 @@ struct Common {
     /// The same key as 64 hex digits (how `load` hands it to its worker processes).
     #[arg(long, value_name = "HEX", hide = true, conflicts_with = "planner_key")]
     planner_public_key: Option<String>,
+    /// Over Zenoh without a planner key, reach a planner beyond this host anyway (refused
+    /// otherwise: any peer there could answer and be believed). Logged as INSECURE.
+    #[arg(long)]
+    insecure: bool,
 }
 
 impl Common {
@@ -162,6 +166,7 @@ impl Common {
                         retry_after: self.zenoh_retry_after,
                         suspect_for: self.zenoh_suspect_for,
                     },
+                    insecure: self.insecure,
                 };
                 let planner = match (zenoh_flags, self.spawn_planner) {
                     (true, true) => anyhow::bail!("give either --zenoh-connect / --zenoh-config or --spawn-planner"),

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 mod attacker;
+pub mod forger;
 pub mod instances;
 mod process;
 pub mod ros2;
@@ -155,6 +156,7 @@ impl ZenohPlanner {
             config_file: None,
             verifier,
             failover: Default::default(),
+            insecure: false,
         };
         // Debug builds on a shared machine may take long to start answering.
         transport::zenoh::ZenohChannel::connect(&target, Duration::from_secs(60), Duration::from_secs(5))
@@ -172,6 +174,27 @@ pub fn signal(pid: u32, name: &str) {
 }
 
 pub use protocol::worked_example_request;
+
+/// `planner keygen DIR/NAME`: the secret key file and the public one.
+pub fn keygen(dir: &std::path::Path, name: &str) -> (PathBuf, PathBuf) {
+    let secret = dir.join(name);
+    let out = std::process::Command::new(binary("planner"))
+        .arg("keygen")
+        .arg(&secret)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let public = dir.join(format!("{name}.pub"));
+    assert!(public.exists(), "keygen wrote no {}", public.display());
+    // Refuses to overwrite an existing key.
+    let again = std::process::Command::new(binary("planner"))
+        .arg("keygen")
+        .arg(&secret)
+        .output()
+        .unwrap();
+    assert!(!again.status.success());
+    (secret, public)
+}
 
 /// Runs `sim_client case1 --out <dir>/<name> <args>` and returns its `decisions.csv`;
 /// `planner_log` is shown if the run fails.

@@ -9,105 +9,19 @@
 //! every forgery and act only on the planner's answers. Over iceoryx2 a client with the wrong
 //! key refuses the planner's answers.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use protocol::{
-    decode_bincode, encode_bincode, Layer, OutcomeRef, PlanResponse, ResponseSigner, ResponseVerifier, SetPoint,
-    VerifyError, WireFormat, ZENOH_PLAN_KEY,
-};
-use system_tests::{binary, python_ready, scratch_dir, worked_example_request, Iceoryx2Prefix, ZenohPlanner};
+use protocol::{decode_bincode, encode_bincode, PlanResponse, ResponseVerifier, VerifyError, WireFormat};
+use system_tests::forger::{forged, Forger, FORGED_ACCEL};
+use system_tests::{binary, keygen, python_ready, scratch_dir, worked_example_request, Iceoryx2Prefix, ZenohPlanner};
 use transport::iceoryx2::{Client, ClientOptions};
-use transport::zenoh::{encoding, format_of};
 use transport::PlanChannel;
-use zenoh::query::Query;
-use zenoh::Wait;
 
 /// How long a planner may take to start answering (debug builds on a shared machine).
 const STARTUP: Duration = Duration::from_secs(60);
-/// The forger's set-point: no planner commands this, so a vehicle that took a forgery shows.
-const FORGED_ACCEL: f64 = 9.75;
-
-/// `planner keygen DIR/NAME`: the secret key file and the public one.
-fn keygen(dir: &Path, name: &str) -> (PathBuf, PathBuf) {
-    let secret = dir.join(name);
-    let out = Command::new(binary("planner"))
-        .arg("keygen")
-        .arg(&secret)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let public = dir.join(format!("{name}.pub"));
-    assert!(public.exists(), "keygen wrote no {}", public.display());
-    // Refuses to overwrite an existing key.
-    let again = Command::new(binary("planner"))
-        .arg("keygen")
-        .arg(&secret)
-        .output()
-        .unwrap();
-    assert!(!again.status.success());
-    (secret, public)
-}
-
-/// The forger: a Zenoh client session of the planner's network answering every plan query
-/// at once with a nominal-looking decision for the asking vehicle, alternately unsigned and
-/// signed with its own key, for the request's sequence minus `replay` (0: for the very
-/// request; 1: an old answer replayed). Counts what it sent.
-struct Forger {
-    _session: zenoh::Session,
-    _queryable: zenoh::query::Queryable<()>,
-    sent: Arc<AtomicU64>,
-}
-
-impl Forger {
-    fn start(endpoint: &str, replay: u64) -> Self {
-        let config = transport::zenoh::client_config(endpoint).unwrap();
-        let session = zenoh::open(config).wait().expect("forger session");
-        let own_key = ResponseSigner::from_seed(&[0x66; 32]);
-        let sent = Arc::new(AtomicU64::new(0));
-        let counter = Arc::clone(&sent);
-        let queryable = session
-            .declare_queryable(format!("{ZENOH_PLAN_KEY}/**"))
-            .complete(true)
-            .callback(move |query: Query| {
-                let format = format_of(query.encoding());
-                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
-                let (vehicle_id, sequence) = format.peek_ids(&bytes);
-                let mut decided = protocol::Decided::default();
-                decided.set_layer(Layer::Nominal);
-                decided.next_maneuver = protocol::Maneuver { lane: 1, beta: 1 };
-                decided.setpoint = SetPoint {
-                    accel_mps2: FORGED_ACCEL,
-                    target_speed_mps: 40.0,
-                };
-                let sequence = sequence.wrapping_sub(replay);
-                let mut forged = PlanResponse::decided(vehicle_id, sequence, decided, 900, 10);
-                let n = counter.fetch_add(1, Ordering::SeqCst);
-                if n % 2 == 1 {
-                    own_key.sign(&mut forged);
-                }
-                let key = query.key_expr().clone();
-                let _ = query
-                    .reply(key, format.encode(&forged))
-                    .encoding(encoding(format))
-                    .wait();
-            })
-            .wait()
-            .expect("forged queryable");
-        Self {
-            _session: session,
-            _queryable: queryable,
-            sent,
-        }
-    }
-}
-
-fn forged(response: &PlanResponse) -> bool {
-    matches!(response.outcome.get(), Ok(OutcomeRef::Decided(d)) if d.setpoint.accel_mps2 == FORGED_ACCEL)
-}
 
 /// Without a key, the Zenoh channel still takes only the answer to the request it sent: a
 /// replayed answer (the vehicle's previous sequence) arriving first is counted as

@@ -4,7 +4,8 @@
 //!
 //! * SIGPIPE is ignored by `serve`;
 //! * oversized queries are dropped while being reassembled, and the planner's memory stays
-//!   bounded;
+//!   bounded; their sender's query ends at its own timeout, with nothing back (nothing can
+//!   come: the planner never sees them), and one just below the limit gets a typed rejection;
 //! * a peer that sends queries and never reads the replies costs the others nothing;
 //! * a vehicle that floods does not starve another.
 //!
@@ -82,12 +83,19 @@ fn oversized_queries_are_dropped_unbuffered_and_memory_stays_bounded() {
                         .timeout(Duration::from_secs(20))
                         .wait()
                         .expect("query sent");
-                    let mut n = 0;
+                    // Nothing can come back: the message never reaches the planner, and
+                    // Zenoh sends no word of the drop. The query ends at the sender's own
+                    // timeout, with Zenoh's "Timeout" error: that bounds its wait.
+                    let (mut answers, mut timed_out) = (0, false);
                     while let Ok(reply) = replies.recv() {
-                        n += usize::from(reply.result().is_ok());
+                        match reply.result() {
+                            Ok(_) => answers += 1,
+                            Err(e) => timed_out |= e.payload().try_to_string().is_ok_and(|s| s == "Timeout"),
+                        }
                     }
                     let _ = session.close().wait();
-                    n
+                    assert!(timed_out, "the query did not end at its timeout");
+                    answers
                 })
             })
             .collect();
@@ -99,6 +107,22 @@ fn oversized_queries_are_dropped_unbuffered_and_memory_stays_bounded() {
         .unwrap();
     eprintln!("planner peak RSS: {before_kb} kB before, {after_kb} kB after four 100 MB queries");
     assert_eq!(answers, vec![0; 4], "an oversized query reached the planner");
+    // Below the limit the planner has the query whole, and answers it: a typed rejection.
+    let session = attacker_session(&planner.endpoint, serde_json::json!({}));
+    let replies = session
+        .get(ZENOH_PLAN_KEY)
+        .payload(vec![0xab; 60_000])
+        .timeout(Duration::from_secs(20))
+        .wait()
+        .expect("query sent");
+    let reply = replies.recv().expect("an answer");
+    let response: protocol::PlanResponse =
+        protocol::decode_bincode(&reply.result().expect("an answer").payload().to_bytes()).unwrap();
+    // Junk bytes: refused for their version (the first two bytes), typed either way.
+    assert!(
+        matches!(response.outcome.as_rejected().map(|r| r.reason()), Some(Ok(_))),
+        "{response:?}"
+    );
     // The service goes on.
     let figures = normal_vehicle(&channel, 10, || true);
     assert_eq!(figures.answered, 10, "{figures:?}\n{}", planner.log());

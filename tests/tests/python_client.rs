@@ -453,3 +453,35 @@ fn no_answer_exits_1_after_the_timeout() {
     );
     eprintln!("late planner: client gave up after {:?} (process total)", run.elapsed);
 }
+
+/// Size: a request Zenoh delivers gets a typed answer, however wrong it is; one above the
+/// planner's message limit could never be answered (every session drops it while
+/// reassembling it, and nothing goes back), so the client refuses it before sending and
+/// exits 1 at once instead of waiting out its timeout (docs/protocol.md, "Size"). Without
+/// that check the client would wait its whole `--timeout 600` and be killed after
+/// CLIENT_LIMIT.
+#[test]
+fn an_oversized_request_is_refused_before_it_is_sent() {
+    if !python_ready() {
+        return;
+    }
+    let planner = PlannerProcess::start("oversized", &[]);
+    let padded = |bytes: usize| {
+        let mut request = snapshot(25.0, &[(1, 50.0, 2, 20.0)]);
+        // An unknown field: the planner rejects it as malformed once it has it whole.
+        request["padding"] = "x".repeat(bytes).into();
+        request
+    };
+    let run = planner.ask("below-limit", &padded(50_000), &["--timeout", "600"]);
+    assert_eq!(run.code, 2, "stdout: {}\nstderr: {}", run.stdout, run.stderr);
+    assert!(run.stderr.contains("rejected: malformed"), "{}", run.stderr);
+    let run = planner.ask("above-limit", &padded(100_000), &["--timeout", "600"]);
+    assert_eq!(run.code, 1, "stdout: {}\nstderr: {}", run.stdout, run.stderr);
+    assert!(run.stdout.is_empty(), "no decision printed: {}", run.stdout);
+    assert!(run.stderr.contains("the planner receives at most"), "{}", run.stderr);
+    eprintln!(
+        "oversized request: refused in {:?} (process total): {}",
+        run.elapsed,
+        run.stderr.trim()
+    );
+}

@@ -2,7 +2,8 @@
 //! whose `sent_at_ns` is already older than its deadline with the fallback marked
 //! `stale_fallback`, never with a fresh-looking solve of the old scene.
 //!
-//! * requests stamped in the past, over both transports, beside fresh and unstamped ones;
+//! * requests stamped in the past, over both transports and over ROS 2, beside fresh and
+//!   unstamped ones;
 //! * the planner stopped with SIGSTOP while a vehicle keeps sending: every request that
 //!   waited in the socket buffers longer than its deadline comes back stale.
 //!
@@ -14,7 +15,8 @@ use std::time::{Duration, Instant};
 use protocol::{
     decode_bincode, encode_bincode, unix_now_ns, Layer, PlanRequest, PlanResponse, WireFormat, ZENOH_PLAN_KEY,
 };
-use system_tests::{signal, worked_example_request, Iceoryx2Prefix, ZenohPlanner};
+use system_tests::ros2::Domain;
+use system_tests::{signal, worked_example_request, Iceoryx2Prefix, Process, ZenohPlanner};
 use transport::iceoryx2::{Client, ClientOptions};
 use transport::zenoh::{encoding, ZenohChannel};
 use zenoh::handlers::FifoChannelHandler;
@@ -75,6 +77,32 @@ fn requests_older_than_their_deadline_are_answered_as_stale() {
     stale_and_fresh("iceoryx2", &mut ask_iceoryx2);
     let stats = stats_document(&zenoh);
     assert_eq!(stats["by_layer"]["stale_fallback"], 4, "{stats}");
+}
+
+/// The ROS 2 front (`planner serve --ros2`) answers stale requests as the others do.
+#[test]
+fn requests_older_than_their_deadline_are_answered_as_stale_over_ros2() {
+    let domain = Domain::new(0);
+    let planner = Process::start_with_env("planner", &["serve", "--ros2"], "stale-ros2", &domain.env());
+    let [(_, id), _, _] = domain.env();
+    let client = hmdp_ros2::PlanClient::new(hmdp_ros2::ClientOptions {
+        node: hmdp_ros2::NodeConfig {
+            domain_id: Some(id.parse().expect("a domain id")),
+            discovery: Some(hmdp_ros2::DiscoveryRange::Localhost),
+            ..hmdp_ros2::NodeConfig::named(format!("hmdp_stale_vehicle_{}", std::process::id()))
+        },
+    })
+    .expect("a ROS 2 client");
+    client
+        .wait_for_service(STARTUP)
+        .unwrap_or_else(|e| panic!("{e}\n{}", planner.log()));
+    let mut ask_ros2 = |request: &PlanRequest| -> PlanResponse {
+        client
+            .exchange(request, Duration::from_secs(10))
+            .expect("an exchange")
+            .unwrap_or_else(|| panic!("no ROS 2 answer\n{}", planner.log()))
+    };
+    stale_and_fresh("ros2", &mut ask_ros2);
 }
 
 /// Over one transport: two requests stamped in the past come back stale, a fresh and an

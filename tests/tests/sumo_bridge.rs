@@ -457,3 +457,67 @@ fn check_planner_episode(
     }
     (lateral, corrective)
 }
+
+/// Over the network without the planner's key the bridge refuses to run (a forged planner
+/// there would drive the vehicle), and says why; before it starts SUMO or sends anything.
+#[test]
+fn the_bridge_refuses_an_unverified_planner_beyond_this_host() {
+    require_sumo();
+    let dir = system_tests::scratch_dir("sumo-refusal");
+    let (code, stdout, stderr) = run_python(
+        &dir,
+        &[
+            "clients/sumo/hmdp_sumo.py",
+            // A documentation address (RFC 5737): beyond this host, nothing answers there.
+            "--zenoh-connect",
+            "tcp/198.51.100.7:7447",
+            "--scenario",
+            "clients/sumo/scenarios/test-small.toml",
+            "--drivers",
+            "planner",
+        ],
+    );
+    assert!(
+        code == 1 && stderr.contains("cannot be verified"),
+        "exit {code}\nstdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+}
+
+/// With `--planner-key` the bridge takes only answers signed by the planner: a forger that
+/// answers every plan query first (with a set-point no planner commands) is refused, and the
+/// decisions the bridge applied are exactly the planner's.
+#[test]
+fn the_bridge_verifies_the_planners_answers() {
+    require_sumo();
+    let dir = system_tests::scratch_dir("sumo-signed");
+    let (secret, public) = system_tests::keygen(&dir, "planner.key");
+    let planner = system_tests::ZenohPlanner::start("sumo-signed", &["--signing-key", secret.to_str().unwrap()]);
+    drop(planner.vehicle(Some(protocol::ResponseVerifier::from_file(&public).unwrap())));
+    let forger = system_tests::forger::Forger::start(&planner.endpoint, 0);
+    let json_path = dir.join("results.json");
+    let (code, stdout, stderr) = run_python(
+        &dir,
+        &[
+            "clients/sumo/hmdp_sumo.py",
+            "--zenoh-connect",
+            &planner.endpoint,
+            "--planner-key",
+            public.to_str().unwrap(),
+            "--scenario",
+            "clients/sumo/scenarios/test-small.toml",
+            "--drivers",
+            "planner",
+            "--json",
+            json_path.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, 0, "stdout:\n{stdout}\nstderr:\n{stderr}\n{}", planner.log());
+    let forgeries = forger.sent.load(std::sync::atomic::Ordering::SeqCst);
+    assert!(forgeries > 0, "the forger never answered");
+    assert!(stderr.contains("refused"), "no forgery refused: {stderr}");
+    let results: Value = serde_json::from_str(&read(&json_path)).unwrap();
+    let episode = &results["scenarios"][0]["episode_metrics"]["planner (HMDP-MPC)"][0];
+    let decisions = episode["decisions"].as_u64().expect("decisions");
+    eprintln!("bridge with the key beside a forger ({forgeries} forgeries): {decisions} decisions, {stderr}");
+    assert!(decisions > 0, "{episode}");
+}

@@ -2,9 +2,10 @@
 //! router and the planner in one network namespace and the vehicle in another, over mutual
 //! TLS with access control, with the binaries of this test's own profile.
 //!
-//! It checks that the vehicle got its 100 decisions without a collision, and that clients the
+//! It checks that the vehicle got its 100 decisions without a collision, that clients the
 //! router must refuse (a certificate from another CA, no certificate, a valid certificate with
-//! an unknown name) got none — on the client side and by the planner's own count.
+//! an unknown name) got none — on the client side and by the planner's own count — and that
+//! the planner signs: the vehicle verifies its answers, and refuses to run without its key.
 //!
 //! Needs root and `ip netns` (iproute2) plus openssl; fails otherwise, unless
 //! `HMDP_SKIP_NETNS=1` is set.
@@ -123,6 +124,11 @@ fn vehicle_and_planner_on_two_hosts_over_mutual_tls() {
         let line = format!("two-host-demo: rejection check {name}: no decisions");
         assert!(stdout.contains(&line), "missing `{line}`\n{report}");
     }
+    // Without the planner's public key the vehicle refuses to run (answers signed by default).
+    assert!(
+        stdout.contains("two-host-demo: rejection check no-planner-key: the vehicle refused to run"),
+        "{report}"
+    );
     // The planner's own count: nothing decided for anyone but the vehicle.
     assert!(
         stdout.contains("two-host-demo: planner: 100 decisions, all for the authorised vehicle"),

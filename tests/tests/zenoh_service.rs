@@ -37,6 +37,7 @@ impl Client {
             config_file: None,
             verifier: None,
             failover: Default::default(),
+            insecure: false,
         };
         let channel = ZenohChannel::connect(&target, STARTUP, Duration::from_secs(5))
             .unwrap_or_else(|e| panic!("planner never answered: {e}\n{}", log()));

@@ -41,6 +41,9 @@ pub fn transport_flags(transport: &Transport) -> Vec<String> {
             if let Some(v) = &target.verifier {
                 flags.extend(["--planner-public-key".into(), v.to_hex()]);
             }
+            if target.insecure {
+                flags.push("--insecure".into());
+            }
             let failover = &target.failover;
             for (flag, d) in [
                 ("--zenoh-retry-after", failover.retry_after),

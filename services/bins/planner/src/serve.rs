@@ -269,12 +269,38 @@ pub fn run(args: ServeArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(transport::zenoh::instances::default_instance_id);
         transport::zenoh::instances::check_instance_id(&instance)?;
-        let config = transport::zenoh::config(
-            transport::zenoh::Mode::Peer,
+        // Without a file: a peer when it listens itself, else a client of the router it
+        // connects to. Peers behind a router do not see each other's liveliness tokens
+        // (Zenoh expects peers to mesh directly), and the instances must see each other to
+        // share the vehicles of plain-key clients (docs/deploy.md, "Scaling out").
+        let mode = if args.zenoh_listen.is_empty() {
+            transport::zenoh::Mode::Client
+        } else {
+            transport::zenoh::Mode::Peer
+        };
+        let mut config = transport::zenoh::config(
+            mode,
             args.zenoh_config.as_deref(),
             &args.zenoh_listen,
             &args.zenoh_connect,
         )?;
+        if args.zenoh_config.is_none() && mode == transport::zenoh::Mode::Client {
+            // As in the shipped planner files, behind a router: the router drops a hung
+            // planner after its short lease, so plain-key clients reach another instance;
+            // and the session, which fails at once when its router is not up yet, waits for
+            // it 30 s (then fails, so that systemd restarts the planner). A planner that
+            // listens itself keeps the 3 s lease: its vehicles are connected to it alone,
+            // and a shorter one would only drop their queries during a short stall.
+            let settings = [
+                ("transport/link/tx", transport::zenoh::planner_lease().to_string()),
+                ("connect/timeout_ms", "30000".into()),
+            ];
+            for (key, value) in settings {
+                config
+                    .insert_json5(key, &value)
+                    .map_err(|e| anyhow::anyhow!("zenoh configuration {key}: {e}"))?;
+            }
+        }
         Some((config, instance))
     } else {
         None

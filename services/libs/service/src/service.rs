@@ -331,6 +331,11 @@ impl Service {
         })
     }
 
+    /// The public key of the service's signing key, if it signs.
+    pub fn verifier(&self) -> Option<protocol::ResponseVerifier> {
+        self.config.signer.as_ref().map(ResponseSigner::verifier)
+    }
+
     /// The statistics (shared; read [`Stats::snapshot`]).
     pub fn stats(&self) -> Arc<Stats> {
         Arc::clone(&self.stats)

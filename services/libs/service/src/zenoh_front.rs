@@ -1,12 +1,15 @@
 //! The Zenoh front end of `planner serve`: a queryable on [`protocol::ZENOH_PLAN_KEY`] (for
-//! any client) and one on the instance's own key `hmdp/planner/plan/<instance>` (for clients
-//! that spread vehicles over instances), both handing every query to the [`Service`]; the
-//! instance's liveliness token `hmdp/planner/alive/<instance>`; and a publisher of the
+//! any client; a request of a vehicle that another instance serves is forwarded there,
+//! [`forward`]) and one on the instance's own key `hmdp/planner/plan/<instance>` (for clients
+//! that spread vehicles over instances, and forwards), handing queries to the [`Service`];
+//! the instance's liveliness token `hmdp/planner/alive/<instance>`; and a publisher of the
 //! statistics on [`protocol::ZENOH_STATS_KEY`].
 //!
-//! The queryable's callback runs on Zenoh's threads and never blocks: it decodes, submits
-//! (a non-blocking `try_send`) and returns; answers come back through an unbounded channel
-//! to a tokio task that sends the replies.
+//! The queryables' callbacks run on Zenoh's threads and never block: they decode, submit
+//! (a non-blocking `try_send`) or spawn a forward, and return; answers come back through an
+//! unbounded channel to a tokio task that sends the replies.
+
+mod forward;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -47,18 +50,10 @@ pub async fn serve(
 ) -> Result<(), ZenohFrontError> {
     let session = zenoh::open(config).await.map_err(failed("opening the zenoh session"))?;
     let (reply_tx, mut reply_rx) = mpsc::unbounded_channel::<(Query, Vec<u8>, WireFormat)>();
-    let own_key = instance_plan_key(&instance);
-    let mut queryables = Vec::new();
-    for key in [ZENOH_PLAN_KEY, own_key.as_str()] {
+    let serve_here: forward::ServeHere = {
         let svc = Arc::clone(&service);
-        let reply_tx = reply_tx.clone();
-        let queryable = session
-            .declare_queryable(key)
-            .complete(true)
-            .callback(move |query: Query| {
-                let arrival = Instant::now();
-                let format = format_of(query.encoding());
-                let bytes: Vec<u8> = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+        Arc::new(
+            move |query: Query, bytes: Vec<u8>, format: WireFormat, arrival: Instant| {
                 let tx = reply_tx.clone();
                 svc.handle_bytes(
                     &bytes,
@@ -69,12 +64,40 @@ pub async fn serve(
                         let _ = tx.send((query, body, format));
                     }),
                 );
+            },
+        )
+    };
+    let forwarder = forward::Forwarder::start(
+        &session,
+        instance.clone(),
+        service.verifier(),
+        Arc::clone(&serve_here),
+        service.stats(),
+    )?;
+    let own_key = instance_plan_key(&instance);
+    let mut queryables = Vec::new();
+    for key in [ZENOH_PLAN_KEY, own_key.as_str()] {
+        let (serve_here, forwarder) = (Arc::clone(&serve_here), Arc::clone(&forwarder));
+        // Only the plain key's queries may go to another instance: the instances' keys are
+        // where forwards arrive, so nothing is forwarded twice.
+        let plain = key == ZENOH_PLAN_KEY;
+        let queryable = session
+            .declare_queryable(key)
+            .complete(true)
+            .callback(move |query: Query| {
+                let arrival = Instant::now();
+                let format = format_of(query.encoding());
+                let bytes: Vec<u8> = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                if plain {
+                    forwarder.dispatch(query, bytes, format, arrival);
+                } else {
+                    serve_here(query, bytes, format, arrival);
+                }
             })
             .await
             .map_err(failed(format!("declaring the queryable on {key}")))?;
         queryables.push(queryable);
     }
-    drop(reply_tx);
     // Declared once the queryables serve: a client that sees the token can be answered.
     let token = session
         .liveliness()
@@ -122,6 +145,7 @@ pub async fn serve(
     // The token first: clients stop choosing this instance before its queryables go.
     drop(token);
     drop(queryables);
+    drop(forwarder);
     responder.abort();
     let _ = session.close().await;
     Ok(())

@@ -44,6 +44,20 @@ pub enum ChannelError {
         #[source]
         source: crate::zenoh::Cause,
     },
+    /// No planner key for a session that may reach beyond this host, and no `insecure`:
+    /// any peer there could answer and be believed.
+    #[error(
+        "the planner may be reached beyond this host ({reach}) and its answers cannot be verified: give the \
+         planner's public key (sim_client --planner-key FILE), or accept unverified answers with --insecure"
+    )]
+    UnverifiedRemotePlanner {
+        /// The non-loopback endpoints and the scouting that reach beyond.
+        reach: String,
+    },
+    /// A request no planner could receive: Zenoh drops a message that large on the way,
+    /// unanswered.
+    #[error("a request of {bytes} bytes: the planner receives at most {max} (Zenoh drops larger ones unanswered)")]
+    RequestTooLarge { bytes: usize, max: usize },
     /// A channel defined outside this crate failed (the simulator's ROS 2 channel).
     #[error("{transport}")]
     Other {

@@ -17,6 +17,8 @@ pub(super) struct Counters {
     pub(super) rate_limited: u64,
     pub(super) stale_in_queue: u64,
     pub(super) late_discarded: u64,
+    pub(super) forwarded: u64,
+    pub(super) taken_back: u64,
 }
 
 pub(super) struct StatsInner {
@@ -54,6 +56,12 @@ pub struct StatsSnapshot {
     pub stale_in_queue: u64,
     /// Worker results that arrived after the watchdog had answered.
     pub late_discarded: u64,
+    /// Plain-key requests sent on to the instance that serves their vehicle, its answer
+    /// relayed (not counted in `answered`: that instance counts it).
+    pub forwarded: u64,
+    /// Forwarded requests that instance left unanswered for the retry time: served here
+    /// (counted in `answered` too).
+    pub taken_back: u64,
     /// Arrival to answer.
     pub latency: Percentiles,
     /// Worker decision time (excludes queueing).
@@ -83,6 +91,16 @@ impl Stats {
         stats::record(&mut s.latency, arrival.elapsed());
     }
 
+    /// A plain-key request forwarded to another instance: relayed, or `taken_back`.
+    pub fn count_forward(&self, taken_back: bool) {
+        let mut s = self.lock();
+        if taken_back {
+            s.counters.taken_back += 1;
+        } else {
+            s.counters.forwarded += 1;
+        }
+    }
+
     pub(super) fn record_solve(&self, took: Duration) {
         stats::record(&mut self.lock().solve, took);
     }
@@ -104,6 +122,8 @@ impl Stats {
             rate_limited: c.rate_limited,
             stale_in_queue: c.stale_in_queue,
             late_discarded: c.late_discarded,
+            forwarded: c.forwarded,
+            taken_back: c.taken_back,
             latency: Percentiles::of_histogram(&latency),
             solve: Percentiles::of_histogram(&solve),
         }

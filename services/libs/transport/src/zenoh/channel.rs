@@ -6,12 +6,11 @@ use std::time::{Duration, Instant};
 
 use ::zenoh::pubsub::Subscriber;
 use ::zenoh::query::{ConsolidationMode, Querier, QueryTarget, Reply};
-use ::zenoh::sample::{Sample, SampleKind};
 use ::zenoh::{Session, Wait};
-use protocol::{PlanRequest, PlanResponse, ResponseVerifier, WireFormat, ZENOH_ALIVE_KEYS, ZENOH_PLAN_KEY};
+use protocol::{PlanRequest, PlanResponse, ResponseVerifier, WireFormat, ZENOH_PLAN_KEY};
 
-use super::instances::{instance_of_alive_key, instance_plan_key, Instances};
-use super::{encoding, Failover, ZenohTarget};
+use super::instances::{follow, instance_plan_key, Instances};
+use super::{check_request_size, encoding, Failover, ZenohTarget};
 use crate::{await_ready, Answer, ChannelError, PlanChannel};
 
 /// Requests as Zenoh queries (bincode payloads). With planner instances in sight (their
@@ -65,6 +64,7 @@ impl ZenohChannel {
     ) -> Result<Self, ChannelError> {
         let since = Instant::now();
         let at = || format!("at {}", target.describe());
+        target.check_security(&target.config()?)?;
         let session = loop {
             match ::zenoh::open(target.config()?).wait() {
                 Ok(s) => break s,
@@ -86,26 +86,10 @@ impl ZenohChannel {
                 what: "declaring the querier".into(),
                 source,
             })?;
-        let instances = Instances::default();
-        let tracked = instances.clone();
-        let alive = session
-            .liveliness()
-            .declare_subscriber(ZENOH_ALIVE_KEYS)
-            .history(true)
-            .callback(move |sample: Sample| {
-                if let Some(id) = instance_of_alive_key(sample.key_expr().as_str()) {
-                    tracing::debug!(instance = id, kind = %sample.kind(), "planner instance");
-                    match sample.kind() {
-                        SampleKind::Put => tracked.alive(id),
-                        SampleKind::Delete => tracked.gone(id),
-                    }
-                }
-            })
-            .wait()
-            .map_err(|source| ChannelError::Zenoh {
-                what: "following the planner instances".into(),
-                source,
-            })?;
+        let (instances, alive) = follow(&session).map_err(|source| ChannelError::Zenoh {
+            what: "following the planner instances".into(),
+            source,
+        })?;
         let channel = Self {
             session,
             querier,
@@ -184,6 +168,7 @@ impl ZenohChannel {
         payload: Vec<u8>,
         on_reply: impl Fn(Vec<u8>) + Send + Sync + 'static,
     ) -> Result<(), ChannelError> {
+        check_request_size(payload.len())?;
         self.querier
             .get()
             .payload(payload)
@@ -272,6 +257,7 @@ impl PlanChannel for ZenohChannel {
         let deadline = start + wait;
         let retry_at = start + self.failover.retry_after;
         let payload = protocol::encode_bincode(&request);
+        check_request_size(payload.len())?;
         let expected = (request.vehicle_id, request.sequence);
         let order = self.instances.order(request.vehicle_id, start);
         let (tx, rx) = mpsc::channel();

@@ -7,6 +7,9 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
+use ::zenoh::pubsub::Subscriber;
+use ::zenoh::sample::{Sample, SampleKind};
+use ::zenoh::{Session, Wait};
 use protocol::{ZENOH_ALIVE_KEYS, ZENOH_PLAN_KEY};
 use thiserror::Error;
 
@@ -131,6 +134,28 @@ impl Instances {
         order.sort_by_key(|id| s.suspect.contains_key(id));
         order
     }
+}
+
+/// Follows the planner instances' liveliness tokens on `session`, those present now
+/// included (history); the subscriber keeps the returned set up to date until dropped.
+pub fn follow(session: &Session) -> Result<(Instances, Subscriber<()>), super::Cause> {
+    let instances = Instances::default();
+    let tracked = instances.clone();
+    let subscriber = session
+        .liveliness()
+        .declare_subscriber(ZENOH_ALIVE_KEYS)
+        .history(true)
+        .callback(move |sample: Sample| {
+            if let Some(id) = instance_of_alive_key(sample.key_expr().as_str()) {
+                tracing::debug!(instance = id, kind = %sample.kind(), "planner instance");
+                match sample.kind() {
+                    SampleKind::Put => tracked.alive(id),
+                    SampleKind::Delete => tracked.gone(id),
+                }
+            }
+        })
+        .wait()?;
+    Ok((instances, subscriber))
 }
 
 #[cfg(test)]

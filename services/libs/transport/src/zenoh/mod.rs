@@ -4,6 +4,7 @@
 
 mod channel;
 pub mod instances;
+pub mod security;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -81,13 +82,26 @@ pub fn reconnect() -> serde_json::Value {
 
 /// How long a session's peers wait for a sign of life before they drop it (its lease, which
 /// each side announces and the other enforces), and how many keep-alives it sends per lease:
-/// 3 s and 4. Zenoh's default, 10 s, is how long a router keeps a hung (e.g. SIGSTOPped)
-/// planner's liveliness token and queryable; a vehicle's retry bounds what the hang costs
-/// it, the lease how long vehicles keep trying the hung instance first. Set in the built-in
-/// configurations and the shipped planner files.
+/// 3 s and 4 (Zenoh's default: 10 s). Set in the built-in configurations; a planner's is
+/// shorter ([`planner_lease`]).
 pub fn lease() -> serde_json::Value {
     serde_json::json!({ "lease": 3000, "keep_alive": 4 })
 }
+
+/// A planner's lease: 600 ms, a keep-alive every 150 ms. It is how long a router keeps a
+/// hung (e.g. SIGSTOPped) planner's queryables and liveliness token: a client that only
+/// knows `hmdp/planner/plan` is routed to one instance, and reaches another only once its
+/// router has dropped that one, so the lease bounds what a hang costs such a client
+/// (docs/deploy.md, "Scaling out"; the vehicles that pick an instance retry after 150 ms
+/// anyway). A planner sends far more often than every 150 ms while it serves; idle, it
+/// must get a core within 450 ms, or its router drops it and it reconnects (50 ms later).
+/// Set by `planner serve` in its built-in configuration and in the shipped planner files.
+pub fn planner_lease() -> serde_json::Value {
+    serde_json::json!({ "lease": PLANNER_LEASE_MS, "keep_alive": 4 })
+}
+
+/// A planner's lease, ms (see [`planner_lease`]).
+pub const PLANNER_LEASE_MS: u64 = 600;
 
 /// How a session that listens admits new connections (`transport/unicast`): up to 1000
 /// connections may be in Zenoh's session handshake at once (`accept_pending`, Zenoh's
@@ -142,6 +156,22 @@ pub fn hardening() -> serde_json::Value {
     })
 }
 
+/// Refuses a request payload that no planner could receive: every session of the project
+/// drops a message above [`MAX_MESSAGE_SIZE`] while reassembling it, and nothing goes back
+/// to the sender (docs/protocol.md, "Size").
+pub fn check_request_size(bytes: usize) -> Result<(), ChannelError> {
+    // The payload travels with the key expression and Zenoh's headers: keep a margin.
+    let max = MAX_MESSAGE_SIZE - REQUEST_OVERHEAD;
+    if bytes > max {
+        return Err(ChannelError::RequestTooLarge { bytes, max });
+    }
+    Ok(())
+}
+
+/// What a query adds to its payload on the wire, at most (the key expression, the
+/// encoding, Zenoh's headers), with room to spare.
+pub const REQUEST_OVERHEAD: usize = 1024;
+
 /// The configuration of a client connecting to `endpoint` only.
 pub fn client_config(endpoint: &str) -> Result<Config, ChannelError> {
     config(Mode::Client, None, &[], &[endpoint.to_owned()])
@@ -177,6 +207,10 @@ pub struct ZenohTarget {
     pub verifier: Option<ResponseVerifier>,
     /// How a request fails over between planner instances.
     pub failover: Failover,
+    /// Accept unverified answers from a planner beyond this host (`--insecure`). Without a
+    /// `verifier`, a session that can reach beyond this host is refused unless this is set
+    /// ([`ZenohTarget::check_security`]).
+    pub insecure: bool,
 }
 
 /// How a vehicle's channel shares out its requests when several planner instances serve
@@ -209,6 +243,31 @@ impl ZenohTarget {
         }
         let connect: Vec<String> = self.endpoint.iter().cloned().collect();
         config(Mode::Client, self.config_file.as_deref(), &[], &connect)
+    }
+
+    /// Refuses a session that may meet a planner beyond this host without the planner's
+    /// public key: there, anyone who can declare a queryable on the Zenoh network can answer
+    /// and would be believed. On this host alone (loopback endpoints, no scouting) unsigned
+    /// answers stay allowed, as in the demos; with `insecure` the session goes ahead, with a
+    /// warning in the log.
+    pub fn check_security(&self, config: &Config) -> Result<(), ChannelError> {
+        if self.verifier.is_some() {
+            return Ok(());
+        }
+        let reach = security::beyond_this_host(config);
+        if reach.is_empty() {
+            return Ok(());
+        }
+        let reach = reach.join(", ");
+        if self.insecure {
+            tracing::warn!(
+                "INSECURE: answers from the planner at {} are not verified ({reach}): anyone who can answer \
+                 on that network commands this vehicle; give the planner's public key",
+                self.describe()
+            );
+            return Ok(());
+        }
+        Err(ChannelError::UnverifiedRemotePlanner { reach })
     }
 
     pub(crate) fn describe(&self) -> String {
@@ -262,6 +321,24 @@ mod tests {
     }
 
     #[test]
+    fn a_request_no_planner_could_receive_is_refused_before_it_is_sent() {
+        let largest = MAX_MESSAGE_SIZE - REQUEST_OVERHEAD;
+        assert!(check_request_size(largest).is_ok());
+        match check_request_size(largest + 1) {
+            Err(ChannelError::RequestTooLarge { bytes, max }) => assert_eq!((bytes, max), (largest + 1, largest)),
+            other => panic!("{other:?}"),
+        }
+        // The largest valid request is far inside the bound.
+        let mut request = protocol::worked_example_request(1, 1);
+        let first = *request.svs.iter().next().unwrap();
+        for id in 2..=protocol::MAX_SVS as u32 {
+            let _ = protocol::containers::Vector::push(&mut request.svs, protocol::SvObservation { id, ..first });
+        }
+        assert_eq!(protocol::containers::Vector::len(&request.svs), protocol::MAX_SVS);
+        assert!(check_request_size(protocol::encode_json(&request).len()).is_ok());
+    }
+
+    #[test]
     fn built_in_configurations_reconnect_fast() {
         for mode in [Mode::Peer, Mode::Client] {
             let config = config(mode, None, &[], &["tcp/127.0.0.1:7447".into()]).unwrap();
@@ -269,18 +346,22 @@ mod tests {
         }
     }
 
-    /// The planner's lease: a hung planner is dropped by its router after 3 s, not 10 s.
-    fn assert_short_lease(config: &Config, what: &str) {
-        for (key, want) in lease().as_object().unwrap() {
+    /// A planner's lease: a hung planner is dropped by its router after 600 ms, not 10 s.
+    fn assert_planner_lease(config: &Config, what: &str) {
+        for (key, want) in planner_lease().as_object().unwrap() {
             let got = config.get_json(&format!("transport/link/tx/{key}")).unwrap();
             assert_eq!(got, want.to_string(), "{what}: transport/link/tx/{key}");
         }
     }
 
     #[test]
-    fn built_in_configurations_have_the_short_lease() {
+    fn built_in_configurations_have_a_lease_shorter_than_zenohs() {
         for mode in [Mode::Peer, Mode::Client] {
-            assert_short_lease(&config(mode, None, &[], &[]).unwrap(), &format!("{mode:?}"));
+            let config = config(mode, None, &[], &[]).unwrap();
+            for (key, want) in lease().as_object().unwrap() {
+                let got = config.get_json(&format!("transport/link/tx/{key}")).unwrap();
+                assert_eq!(got, want.to_string(), "{mode:?}: transport/link/tx/{key}");
+            }
         }
     }
 
@@ -348,7 +429,7 @@ mod tests {
                     .file_name()
                     .is_some_and(|n| n.to_string_lossy().starts_with("planner"));
                 if planner {
-                    assert_short_lease(&config, &path.display().to_string());
+                    assert_planner_lease(&config, &path.display().to_string());
                     planners += 1;
                 }
                 let listen = endpoints(&config, "listen/endpoints");
