@@ -173,10 +173,7 @@ def ego_vtype(scenario, driver):
         # SUMO's egos: the desired speed is the vehicle's own limit (speed factor 1). The
         # planner's: its desired speed goes into the request, and SUMO must not cap its commands.
         max_speed_mps=55.0 if driver == "planner" else scenario.ego_desired_speed_mps,
-        # Exactly 1: a plain "1" is only the mean of SUMO's speed factor (its speedDev, 0.1 by
-        # default, still applies), which inserted the planner's ego (maxSpeed 55) up to some
-        # 6 % above the road's limit and its desired speed, SUMO's egos (capped by maxSpeed) not.
-        speed_factor="normc(1,0,1,1)",
+        speed_factor="1",
     )
 
 
