@@ -62,6 +62,27 @@ impl RoutedPlanners {
         all
     }
 
+    /// Stops every planner (SIGTERM, a clean exit asserted); each one's final statistics.
+    pub fn final_statistics(&mut self) -> Vec<serde_json::Value> {
+        let logs = self.logs();
+        self.planners
+            .iter_mut()
+            .map(|p| {
+                assert!(
+                    p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
+                    "{logs}"
+                );
+                let log = p.log();
+                let stats = log
+                    .lines()
+                    .find(|l| l.contains("final statistics"))
+                    .and_then(|l| l.split("stats=").nth(1))
+                    .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
+                serde_json::from_str(stats.trim()).unwrap()
+            })
+            .collect()
+    }
+
     /// A vehicle's channel (answers awaited for `deadline`), once it gets an answer and sees
     /// every instance's liveliness token; panics with the logs if that does not happen.
     pub fn vehicle(&self, deadline: Duration) -> ZenohChannel {

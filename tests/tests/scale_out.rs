@@ -26,28 +26,6 @@ use transport::{Answer, PlanChannel};
 /// A vehicle's deadline (what `sim_client` waits).
 const DEADLINE: Duration = Duration::from_millis(400);
 
-/// Stops every planner and returns each one's final statistics.
-fn final_statistics(network: &mut RoutedPlanners) -> Vec<serde_json::Value> {
-    let logs = network.logs();
-    network
-        .planners
-        .iter_mut()
-        .map(|p| {
-            assert!(
-                p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
-                "{logs}"
-            );
-            let log = p.log();
-            let stats = log
-                .lines()
-                .find(|l| l.contains("final statistics"))
-                .and_then(|l| l.split("stats=").nth(1))
-                .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
-            serde_json::from_str(stats.trim()).unwrap()
-        })
-        .collect()
-}
-
 /// `vehicle`'s request `sequence`, answered with a decision for it, exactly once.
 fn ask(channel: &mut ZenohChannel, vehicle: u64, sequence: u64) -> Answer {
     let answer = channel
@@ -98,7 +76,8 @@ fn two_instances_share_the_vehicles_and_answer_each_request_once() {
             .collect();
         threads.into_iter().map(|t| t.join().expect("vehicle thread")).sum()
     });
-    let answered: Vec<u64> = final_statistics(&mut network)
+    let answered: Vec<u64> = network
+        .final_statistics()
         .iter()
         .map(|s| s["answered"].as_u64().expect("answered"))
         .collect();
@@ -214,7 +193,7 @@ fn a_hung_instance_costs_its_vehicle_less_than_a_second() {
     );
     // Its fresh answers (not the stale ones to what waited during the stop): the requests
     // before the stop and some after SIGCONT.
-    let stats = &final_statistics(&mut network)[index];
+    let stats = &network.final_statistics()[index];
     let fresh = stats["answered"].as_u64().unwrap() - stats["by_layer"]["stale_fallback"].as_u64().unwrap();
     eprintln!("{preferred}: {fresh} fresh answers, statistics {stats}");
     assert!(

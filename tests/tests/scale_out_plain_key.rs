@@ -69,28 +69,6 @@ impl PlainVehicle {
     }
 }
 
-/// Stops every planner; each one's final statistics.
-fn final_statistics(network: &mut RoutedPlanners) -> Vec<serde_json::Value> {
-    let logs = network.logs();
-    network
-        .planners
-        .iter_mut()
-        .map(|p| {
-            assert!(
-                p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
-                "{logs}"
-            );
-            let log = p.log();
-            let stats = log
-                .lines()
-                .find(|l| l.contains("final statistics"))
-                .and_then(|l| l.split("stats=").nth(1))
-                .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
-            serde_json::from_str(stats.trim()).unwrap()
-        })
-        .collect()
-}
-
 fn count(stats: &serde_json::Value, field: &str) -> u64 {
     stats[field].as_u64().unwrap_or(0)
 }
@@ -131,7 +109,7 @@ fn plain_key_vehicles_are_shared_by_the_instances() {
             .flat_map(|t| t.join().expect("vehicle thread"))
             .collect()
     });
-    let stats = final_statistics(&mut network);
+    let stats = network.final_statistics();
     let answered: Vec<u64> = stats.iter().map(|s| count(s, "answered")).collect();
     let forwarded: Vec<u64> = stats.iter().map(|s| count(s, "forwarded")).collect();
     let taken_back: u64 = stats.iter().map(|s| count(s, "taken_back")).sum();
