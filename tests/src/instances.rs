@@ -72,13 +72,7 @@ impl RoutedPlanners {
                     p.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
                     "{logs}"
                 );
-                let log = p.log();
-                let stats = log
-                    .lines()
-                    .find(|l| l.contains("final statistics"))
-                    .and_then(|l| l.split("stats=").nth(1))
-                    .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
-                serde_json::from_str(stats.trim()).unwrap()
+                p.final_statistics()
             })
             .collect()
     }

@@ -66,6 +66,18 @@ impl Process {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
+    /// The statistics a stopped planner logged last ("final statistics stats=..."); panics
+    /// with the log if there are none.
+    pub fn final_statistics(&self) -> serde_json::Value {
+        let log = self.log();
+        let stats = log
+            .lines()
+            .find_map(|l| l.split_once("final statistics stats="))
+            .map(|(_, s)| s.trim())
+            .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
+        serde_json::from_str(stats).unwrap_or_else(|e| panic!("final statistics {stats}: {e}"))
+    }
+
     /// The process id.
     pub fn id(&self) -> u32 {
         self.child.id()

@@ -311,13 +311,7 @@ fn one_planner_serves_iceoryx2_and_zenoh_at_once() {
     assert!(planner.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()));
     // Both front ends fed one service: its final statistics count every answer, the probes
     // apart.
-    let log = planner.log();
-    let stats = log
-        .lines()
-        .find(|l| l.contains("final statistics"))
-        .and_then(|l| l.split("stats=").nth(1))
-        .unwrap_or_else(|| panic!("no final statistics:\n{log}"));
-    let stats: serde_json::Value = serde_json::from_str(stats.trim()).unwrap();
+    let stats = planner.final_statistics();
     assert_eq!(stats["answered"].as_u64(), Some(10), "{stats}");
     assert_eq!(stats["by_layer"]["rejected"].as_u64(), Some(0), "{stats}");
     assert!(stats["probes"].as_u64().is_some_and(|p| p >= 1), "{stats}");

@@ -262,15 +262,7 @@ fn the_shipped_router_setup_signs_and_its_vehicles_take_no_forgery() {
         planner.terminate(Duration::from_secs(10)).is_some_and(|s| s.success()),
         "{before}"
     );
-    let final_stats = planner
-        .log()
-        .lines()
-        .find_map(|l| {
-            l.split_once("final statistics stats=")
-                .map(|(_, s)| s.trim().to_owned())
-        })
-        .unwrap_or_else(|| panic!("no final statistics\n{}", planner.log()));
-    let stats: serde_json::Value = serde_json::from_str(&final_stats).unwrap();
+    let stats = planner.final_statistics();
     eprintln!(
         "shipped router set-up on {endpoint}, forger answering first ({forgeries} forgeries sent to the load run): \
          sim_client load with the key: {counts}; planner decided {}; Python with the key: 0 of 10 forged; \
