@@ -378,14 +378,35 @@ pub struct VictimFigures {
     pub watchdog: u64,
 }
 
-/// A normal vehicle (id 7): `requests` requests at 20 Hz, each waited for up to 1 s; stops
-/// early if `alive` (asked every 20 requests) says a server process died.
+/// A normal vehicle (id 7) over Zenoh: `requests` requests at 20 Hz, each waited for up to
+/// 1 s; stops early if `alive` (asked every 20 requests) says a server process died.
 pub fn normal_vehicle(
     channel: &transport::zenoh::ZenohChannel,
     requests: u64,
+    alive: impl FnMut() -> bool,
+) -> VictimFigures {
+    use protocol::{decode_bincode, encode_bincode, PlanResponse, WireFormat};
+    let ask = |request: &protocol::PlanRequest| {
+        let replies = channel.ask_raw(&encode_bincode(request), WireFormat::Bincode, VICTIM_WAIT);
+        replies
+            .iter()
+            .filter_map(|(bytes, _)| decode_bincode::<PlanResponse>(bytes).ok())
+            .find(|r| (r.vehicle_id, r.sequence) == (request.vehicle_id, request.sequence))
+    };
+    normal_vehicle_asking(ask, requests, alive)
+}
+
+/// How long the normal vehicle waits for each answer.
+pub const VICTIM_WAIT: Duration = Duration::from_secs(1);
+
+/// The normal vehicle on any transport: `ask` sends one request and returns its own answer
+/// if one came within [`VICTIM_WAIT`].
+pub fn normal_vehicle_asking(
+    mut ask: impl FnMut(&protocol::PlanRequest) -> Option<protocol::PlanResponse>,
+    requests: u64,
     mut alive: impl FnMut() -> bool,
 ) -> VictimFigures {
-    use protocol::{decode_bincode, encode_bincode, Layer, PlanResponse, WireFormat};
+    use protocol::Layer;
     let mut figures = VictimFigures::default();
     for sequence in 1..=requests {
         if sequence % 20 == 0 && !alive() {
@@ -395,12 +416,7 @@ pub fn normal_vehicle(
         let mut request = worked_example_request(7, sequence);
         request.deadline_us = 380_000;
         figures.sent += 1;
-        let replies = channel.ask_raw(&encode_bincode(&request), WireFormat::Bincode, Duration::from_secs(1));
-        let own = replies
-            .iter()
-            .filter_map(|(bytes, _)| decode_bincode::<PlanResponse>(bytes).ok())
-            .find(|r| (r.vehicle_id, r.sequence) == (7, sequence));
-        if let Some(response) = own {
+        if let Some(response) = ask(&request) {
             figures.answered += 1;
             let layer = response.outcome.as_decided().and_then(|d| d.layer().ok());
             if layer == Some(Layer::WatchdogFallback) {
