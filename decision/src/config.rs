@@ -145,6 +145,10 @@ pub struct IdmParams {
     pub violation_recovery_mps2: f64,
     /// Whose speeds size the distance to an SV behind the ego.
     pub rear_distance: RearDistance,
+    /// The least time headway a margin asks for, s: the IDM distance never falls below
+    /// `d0 + v_f * min_time_headway_s`, however much faster the leader (IDM's dynamic term
+    /// alone lets a follower close to `d0` behind a leader pulling away). 0: off.
+    pub min_time_headway_s: f64,
 }
 
 /// The IDM distance to an SV behind the ego.
@@ -170,6 +174,7 @@ impl Default for IdmParams {
             violation_decay: 0.8,
             violation_recovery_mps2: 1.5,
             rear_distance: RearDistance::SvFollows,
+            min_time_headway_s: 0.6,
         }
     }
 }
@@ -541,6 +546,9 @@ impl PlannerConfig {
         }
         if !(self.idm.violation_recovery_mps2.is_finite() && self.idm.violation_recovery_mps2 >= 0.0) {
             return bad("idm.violation_recovery_mps2", "must be finite and non-negative");
+        }
+        if !(self.idm.min_time_headway_s >= 0.0 && self.idm.min_time_headway_s <= self.idm.time_headway_s) {
+            return bad("idm.min_time_headway_s", "must be in [0, time_headway_s]");
         }
         if !(e.lane_change_s.is_finite() && e.lane_change_s > 0.0) {
             return bad("ego.lane_change_s", "must be positive");

@@ -2,11 +2,17 @@
 
 use crate::config::{Hysteresis, IdmParams, RearDistance};
 
-/// IDM desired gap of a follower behind a leader, floored at the jam distance `d0`:
+/// IDM desired gap of a follower behind a leader, floored at the jam distance `d0` plus the
+/// least time headway (`idm.min_time_headway_s`, 0: `d0` alone):
 /// `d0 + v_f T + v_f (v_f - v_l) / (2 sqrt(a b))`.
 pub fn idm_distance(p: &IdmParams, v_follower: f64, v_leader: f64) -> f64 {
     let dynamic = v_follower * (v_follower - v_leader) / (2.0 * (p.max_accel_mps2 * p.comfort_decel_mps2).sqrt());
-    (p.jam_distance_m + v_follower * p.time_headway_s + dynamic).max(p.jam_distance_m)
+    (p.jam_distance_m + v_follower * p.time_headway_s + dynamic).max(headway_floor(p, v_follower))
+}
+
+/// The least IDM distance of a follower at `v_follower`: `d0 + v_f * min_time_headway_s`.
+fn headway_floor(p: &IdmParams, v_follower: f64) -> f64 {
+    p.jam_distance_m + v_follower.max(0.0) * p.min_time_headway_s
 }
 
 /// Whether the ego takes the follower's place in the IDM distance to an SV: always for an
@@ -36,7 +42,9 @@ pub fn hard_margin(d_idm: f64, z_eps: f64, sigma_delta: f64) -> f64 {
 /// quantile term `sigmas[h]`, and the common slope `d margin / d v_ego` (the floor at `d0` is a
 /// row of its own). As follower: `T + (2 v0 - v_sv) / (2 sqrt(a b))`, never negative (slowing
 /// down never widens the margin); as leader the distance is linear in the ego's speed with
-/// slope `-v_sv / (2 sqrt(a b))`.
+/// slope `-v_sv / (2 sqrt(a b))`. With `idm.min_time_headway_s`, a distance below the
+/// follower's headway floor is the floor, and where the SV's distance at its current speed is
+/// floored the slope is the floor's (`min_time_headway_s` as follower, 0 as leader).
 pub fn linearised_margins(
     p: &IdmParams,
     ego_follows: bool,
@@ -54,15 +62,25 @@ pub fn linearised_margins(
                 .zip(speeds)
                 .map(|(&s, &vb)| {
                     let (vf, vl) = if ego_follows { (v0, vb) } else { (vb, v0) };
-                    p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root + s
+                    let idm = p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root;
+                    let floored = p.min_time_headway_s > 0.0 && idm < headway_floor(p, vf);
+                    if floored {
+                        headway_floor(p, vf) + s
+                    } else {
+                        idm + s
+                    }
                 })
                 .collect()
         })
         .collect();
-    let slope = if ego_follows {
-        (p.time_headway_s + (2.0 * v0 - v_sv) / root).max(0.0)
-    } else {
-        -v_sv / root
+    let (vf, vl) = if ego_follows { (v0, v_sv) } else { (v_sv, v0) };
+    let floored_now = p.min_time_headway_s > 0.0
+        && p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root < headway_floor(p, vf);
+    let slope = match (ego_follows, floored_now) {
+        (true, true) => p.min_time_headway_s,
+        (true, false) => (p.time_headway_s + (2.0 * v0 - v_sv) / root).max(0.0),
+        (false, true) => 0.0,
+        (false, false) => -v_sv / root,
     };
     (margins, slope)
 }
@@ -90,9 +108,17 @@ pub fn thresholds(h: &Hysteresis, d_idm: f64, d_hc: f64) -> Thresholds {
 mod tests {
     use super::*;
 
+    /// The IDM distance alone, without the least time headway.
+    fn idm_alone() -> IdmParams {
+        IdmParams {
+            min_time_headway_s: 0.0,
+            ..IdmParams::default()
+        }
+    }
+
     #[test]
     fn idm_distance_by_hand() {
-        let p = IdmParams::default();
+        let p = idm_alone();
         // 2 + 20*1.5 + 20*(20-15)/(2*sqrt(3)) = 32 + 100/3.4641016 = 60.867513
         assert!((idm_distance(&p, 20.0, 15.0) - 60.867_513_459).abs() < 1e-6);
         // Equal speeds: 2 + 30*1.5 = 47.
@@ -104,8 +130,30 @@ mod tests {
     }
 
     #[test]
+    fn the_headway_floor_holds_behind_a_faster_leader() {
+        let p = IdmParams {
+            min_time_headway_s: 0.6,
+            ..idm_alone()
+        };
+        // Behind a leader 7 m/s faster IDM alone asks for d0: the floor asks for 0.6 s.
+        assert_eq!(idm_distance(&idm_alone(), 26.0, 33.0), 2.0);
+        assert!((idm_distance(&p, 26.0, 33.0) - (2.0 + 26.0 * 0.6)).abs() < 1e-12);
+        // Where IDM asks for more, the floor changes nothing.
+        assert_eq!(idm_distance(&p, 30.0, 30.0), idm_distance(&idm_alone(), 30.0, 30.0));
+        // Linearised: the floored branch is the floor (plus its quantile term), the slope the
+        // floor's; an SV behind that is floored no longer depends on the ego's speed.
+        let (m, slope) = linearised_margins(&p, true, 26.0, 33.0, &[vec![33.0], vec![20.0]], &[1.0]);
+        assert!((m[0][0] - (2.0 + 26.0 * 0.6 + 1.0)).abs() < 1e-12);
+        assert!(m[1][0] > 2.0 + 26.0 * 1.5);
+        assert_eq!(slope, 0.6);
+        let (m, slope) = linearised_margins(&p, false, 33.0, 26.0, &[vec![26.0]], &[0.0]);
+        assert!((m[0][0] - (2.0 + 26.0 * 0.6)).abs() < 1e-12);
+        assert_eq!(slope, 0.0);
+    }
+
+    #[test]
     fn linearised_margins_by_hand() {
-        let p = IdmParams::default();
+        let p = idm_alone();
         let root = 2.0 * 3.0f64.sqrt();
         // Ego at 20 following an SV at 15 (branch speed 14 at the step): unfloored IDM
         // 2 + 30 + 20 * 6 / root; slope 1.5 + 25 / root.

@@ -48,6 +48,8 @@ fn without(config: &PlannerConfig, allowance: bool, band: bool) -> PlannerConfig
     if allowance {
         c.idm.violation_decay = 0.0;
         c.idm.violation_recovery_mps2 = 0.0;
+        // Not a relaxation but not the paper's either: its margins are IDM's alone.
+        c.idm.min_time_headway_s = 0.0;
     }
     if band {
         c.hysteresis.soft_band = false;
