@@ -42,6 +42,29 @@ impl Domain {
         ]
     }
 
+    /// A Rust ROS 2 vehicle (node `hmdp_<role>_<pid>`) on this domain, loopback discovery,
+    /// its planner's service matched and answering within `startup` (`planner`'s log in the
+    /// panic otherwise).
+    pub fn plan_client(
+        &self,
+        role: &str,
+        planner: &crate::Process,
+        startup: std::time::Duration,
+    ) -> hmdp_ros2::PlanClient {
+        let client = hmdp_ros2::PlanClient::new(hmdp_ros2::ClientOptions {
+            node: hmdp_ros2::NodeConfig {
+                domain_id: Some(self.0),
+                discovery: Some(hmdp_ros2::DiscoveryRange::Localhost),
+                ..hmdp_ros2::NodeConfig::named(format!("hmdp_{role}_{}", std::process::id()))
+            },
+        })
+        .expect("a ROS 2 client");
+        client
+            .wait_for_service(startup)
+            .unwrap_or_else(|e| panic!("{role}: {e}\n{}", planner.log()));
+        client
+    }
+
     /// A command with this domain's environment.
     pub fn command(&self, program: impl AsRef<std::ffi::OsStr>) -> Command {
         let mut command = Command::new(program);

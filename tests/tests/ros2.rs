@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use hmdp_ros2::{msg, ClientOptions, NodeConfig, PlanClient};
+use hmdp_ros2::msg;
 use protocol::{OutcomeRef, RejectReason};
 use system_tests::ros2::{rclpy_client, venv, Domain};
 use system_tests::{case1_decisions_with_env, free_port, scratch_dir, Process};
@@ -157,18 +157,7 @@ fn sixty_five_svs_over_ros2_are_a_typed_rejection() {
         "ros2-capacity",
         &domain.env(),
     );
-    let client = {
-        let [(_, id), _, _] = domain.env();
-        let node = NodeConfig {
-            domain_id: Some(id.parse().expect("a domain id")),
-            discovery: Some(hmdp_ros2::DiscoveryRange::Localhost),
-            ..NodeConfig::named(format!("hmdp_test_vehicle_{}", std::process::id()))
-        };
-        PlanClient::new(ClientOptions { node }).expect("a ROS 2 client")
-    };
-    client
-        .wait_for_service(Duration::from_secs(60))
-        .unwrap_or_else(|e| panic!("{e}\n{}", planner.log()));
+    let client = domain.plan_client("test_vehicle", &planner, Duration::from_secs(60));
     let mut request = msg::PlanRequest::from(&protocol::worked_example_request(9, 1));
     let sv = request.svs[0];
     request.svs = (0..65u32).map(|id| msg::SvObservation { id, ..sv }).collect();

@@ -20,35 +20,18 @@ const STARTUP: Duration = Duration::from_secs(60);
 /// The flooding vehicle's id.
 const FLOODER: u64 = 666;
 
-/// A ROS 2 client node on `domain`, its service matched and answering.
-fn client(domain: &Domain, role: &str, planner: &Process) -> hmdp_ros2::PlanClient {
-    let [(_, id), _, _] = domain.env();
-    let client = hmdp_ros2::PlanClient::new(hmdp_ros2::ClientOptions {
-        node: hmdp_ros2::NodeConfig {
-            domain_id: Some(id.parse().expect("a domain id")),
-            discovery: Some(hmdp_ros2::DiscoveryRange::Localhost),
-            ..hmdp_ros2::NodeConfig::named(format!("hmdp_{role}_{}", std::process::id()))
-        },
-    })
-    .expect("a ROS 2 client");
-    client
-        .wait_for_service(STARTUP)
-        .unwrap_or_else(|e| panic!("{role}: {e}\n{}", planner.log()));
-    client
-}
-
 #[test]
 fn a_flooding_vehicle_does_not_starve_another_over_ros2() {
     let domain = Domain::new(0);
     let mut planner = Process::start_with_env("planner", &["serve", "--ros2"], "flood-ros2", &domain.env());
-    let vehicle = client(&domain, "normal_vehicle", &planner);
+    let vehicle = domain.plan_client("normal_vehicle", &planner, STARTUP);
     let stop = Arc::new(AtomicBool::new(false));
     let flood_sent = Arc::new(AtomicU64::new(0));
     // Vehicle 666 from two nodes, about 2,000 real requests per second, never waiting for an
     // answer (they still arrive, on the reply topic the normal vehicle reads too).
     let flooders: Vec<_> = (0..2)
         .map(|k| {
-            let flooder = client(&domain, &format!("flooder_{k}"), &planner);
+            let flooder = domain.plan_client(&format!("flooder_{k}"), &planner, STARTUP);
             let (stop, sent) = (Arc::clone(&stop), Arc::clone(&flood_sent));
             std::thread::spawn(move || {
                 let mut sequence = k * 1_000_000;

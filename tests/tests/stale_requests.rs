@@ -84,18 +84,7 @@ fn requests_older_than_their_deadline_are_answered_as_stale() {
 fn requests_older_than_their_deadline_are_answered_as_stale_over_ros2() {
     let domain = Domain::new(0);
     let planner = Process::start_with_env("planner", &["serve", "--ros2"], "stale-ros2", &domain.env());
-    let [(_, id), _, _] = domain.env();
-    let client = hmdp_ros2::PlanClient::new(hmdp_ros2::ClientOptions {
-        node: hmdp_ros2::NodeConfig {
-            domain_id: Some(id.parse().expect("a domain id")),
-            discovery: Some(hmdp_ros2::DiscoveryRange::Localhost),
-            ..hmdp_ros2::NodeConfig::named(format!("hmdp_stale_vehicle_{}", std::process::id()))
-        },
-    })
-    .expect("a ROS 2 client");
-    client
-        .wait_for_service(STARTUP)
-        .unwrap_or_else(|e| panic!("{e}\n{}", planner.log()));
+    let client = domain.plan_client("stale_vehicle", &planner, STARTUP);
     let mut ask_ros2 = |request: &PlanRequest| -> PlanResponse {
         client
             .exchange(request, Duration::from_secs(10))
