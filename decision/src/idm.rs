@@ -54,6 +54,10 @@ pub fn linearised_margins(
     sigmas: &[f64],
 ) -> (Vec<Vec<f64>>, f64) {
     let root = 2.0 * (p.max_accel_mps2 * p.comfort_decel_mps2).sqrt();
+    // The unfloored IDM distance, and whether the headway floor replaces it (the floor at d0
+    // alone is a row of its own, so with no least headway nothing is floored here).
+    let idm = |vf: f64, vl: f64| p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root;
+    let floored = |vf: f64, vl: f64| p.min_time_headway_s > 0.0 && idm(vf, vl) < headway_floor(p, vf);
     let margins = branch_speeds
         .iter()
         .map(|speeds| {
@@ -62,20 +66,21 @@ pub fn linearised_margins(
                 .zip(speeds)
                 .map(|(&s, &vb)| {
                     let (vf, vl) = if ego_follows { (v0, vb) } else { (vb, v0) };
-                    let idm = p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root;
-                    let floored = p.min_time_headway_s > 0.0 && idm < headway_floor(p, vf);
-                    if floored {
-                        headway_floor(p, vf) + s
+                    let distance = if floored(vf, vl) {
+                        headway_floor(p, vf)
                     } else {
-                        idm + s
-                    }
+                        idm(vf, vl)
+                    };
+                    distance + s
                 })
                 .collect()
         })
         .collect();
-    let (vf, vl) = if ego_follows { (v0, v_sv) } else { (v_sv, v0) };
-    let floored_now = p.min_time_headway_s > 0.0
-        && p.jam_distance_m + vf * p.time_headway_s + vf * (vf - vl) / root < headway_floor(p, vf);
+    let floored_now = if ego_follows {
+        floored(v0, v_sv)
+    } else {
+        floored(v_sv, v0)
+    };
     let slope = match (ego_follows, floored_now) {
         (true, true) => p.min_time_headway_s,
         (true, false) => (p.time_headway_s + (2.0 * v0 - v_sv) / root).max(0.0),
