@@ -439,7 +439,8 @@ impl Service {
         };
         if queued {
             // The watchdog first: waking a worker may hand it this core (wake-up preemption)
-            // for a whole solve, and the watchdog must know the deadline before that.
+            // for a whole solve, and the watchdog must know the deadline before that (it is
+            // woken only if it would otherwise wake too late for this request).
             if let Some(wd) = &self.watchdog {
                 wd.send(Arc::clone(&job));
             }

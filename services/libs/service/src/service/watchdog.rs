@@ -20,8 +20,10 @@ use protocol::{Layer, PlanResponse};
 
 use super::{JobState, Stats};
 
-/// How long the watchdog sleeps with nothing to wait for (it also logs the statistics).
-const IDLE: Duration = Duration::from_secs(1);
+/// How long the watchdog sleeps with nothing to wait for. Short enough that a request
+/// with an ordinary deadline (0.4 s) arrives while the watchdog will wake before that
+/// request's fallback is due, so handing it over wakes nobody ([`Inbox::send`]).
+const IDLE: Duration = Duration::from_millis(100);
 
 /// How long before its deadline the watchdog computes a request's fallback: long enough for
 /// a burst of deadlines (a fallback takes about 60 us), short enough that most requests are
@@ -32,6 +34,9 @@ pub(super) const PREPARE_LEAD: Duration = Duration::from_millis(2);
 /// Where the submitters hand requests to the watchdog. A mutex and a condition variable, not
 /// a channel: std's channel receiver spins (yielding) while a sender is halfway through a
 /// send, and a real-time receiver that spins keeps a preempted ordinary sender off the core.
+/// A request is left for the watchdog to collect when it wakes anyway before it would act on
+/// that request: waking a real-time thread on every request takes a core from the request's
+/// own path (the front's thread, the worker) on a small machine.
 pub(super) struct Inbox {
     state: Mutex<InboxState>,
     arrived: Condvar,
@@ -42,6 +47,8 @@ struct InboxState {
     jobs: Vec<Arc<JobState>>,
     /// No more requests come.
     closed: bool,
+    /// While the watchdog sleeps: when it wakes at the latest.
+    sleeping_until: Option<Instant>,
 }
 
 impl Inbox {
@@ -53,8 +60,13 @@ impl Inbox {
     }
 
     pub(super) fn send(&self, job: Arc<JobState>) {
-        self.state.lock().unwrap_or_else(|e| e.into_inner()).jobs.push(job);
-        self.arrived.notify_one();
+        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let wake = needs_wake(state.sleeping_until, job.deadline);
+        state.jobs.push(job);
+        drop(state);
+        if wake {
+            self.arrived.notify_one();
+        }
     }
 
     /// The watchdog answers what it holds and stops.
@@ -68,15 +80,25 @@ impl Inbox {
     fn receive(&self, wait: Duration, into: &mut Vec<Arc<JobState>>) -> bool {
         let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
         if state.jobs.is_empty() && !state.closed && !wait.is_zero() {
+            state.sleeping_until = Some(Instant::now() + wait);
             state = self
                 .arrived
                 .wait_timeout(state, wait)
                 .unwrap_or_else(|e| e.into_inner())
                 .0;
+            state.sleeping_until = None;
         }
         into.append(&mut state.jobs);
         !state.closed
     }
+}
+
+/// Whether a request due at `deadline` must wake the watchdog, asleep until `sleeping_until`
+/// (`None`: awake, it looks into the inbox before it sleeps again): only if it would wake too
+/// late to prepare the request's fallback.
+fn needs_wake(sleeping_until: Option<Instant>, deadline: Instant) -> bool {
+    let prepare_at = deadline.checked_sub(PREPARE_LEAD).unwrap_or(deadline);
+    sleeping_until.is_some_and(|until| prepare_at < until)
 }
 
 /// A request the watchdog waits on, and its fallback once computed.
@@ -266,5 +288,21 @@ mod tests {
         );
         assert_eq!(next_step(now, Some(now + ms(5)), None), Step::Wait(ms(5)));
         assert_eq!(next_step(now, None, None), Step::Wait(IDLE));
+    }
+
+    #[test]
+    fn wakes_the_watchdog_only_when_it_would_be_late() {
+        let now = Instant::now();
+        let ms = Duration::from_millis;
+        // Awake: it collects the request before it sleeps again.
+        assert!(!needs_wake(None, now + ms(1)));
+        // Asleep for the idle period: a request due in 0.4 s waits for it, one due sooner
+        // than the period (plus the lead) wakes it.
+        assert!(!needs_wake(Some(now + IDLE), now + ms(400)));
+        assert!(needs_wake(Some(now + IDLE), now + IDLE));
+        assert!(needs_wake(Some(now + IDLE), now + ms(50)));
+        // Asleep until an earlier request's fallback is due: only an earlier one wakes it.
+        assert!(!needs_wake(Some(now + ms(398)), now + ms(401)));
+        assert!(needs_wake(Some(now + ms(398)), now + ms(399)));
     }
 }
