@@ -9,17 +9,24 @@
 //! same time (upstream eclipse-zenoh/zenoh#2557): a process whose TLS link is read and written
 //! hard at once corrupts its memory and aborts. With the planner on a TLS link that process
 //! was the planner (the attacker's queries in, the replies out). The shipped deployment keeps
-//! the planner off TLS (it reaches the router over loopback TCP, docs/deploy.md). Asserted:
-//! the router and the planner live through the attack, the normal vehicle is not locked out
-//! (it gets answers; issue 12's router death cost it all of them) and at most 1 % of its
-//! answers are watchdog fallbacks (counts, never timings). That it gets every answer is the
-//! goal of an ignored test, not reached: the attacker's queries and its own share the router's
-//! link to the planner, and most of its answers come 0.1 to 1.5 s late (docs/deploy.md).
+//! the planner off TLS (it reaches the router over loopback TCP, docs/deploy.md). The
+//! attacker's queries and the normal vehicle's share the router's one link to the planner:
+//! unchecked, they queued there behind thousands of the attacker's, and most of the vehicle's
+//! answers came 0.1 to 1.5 s late. The router's TLS listener therefore reads each vehicle
+//! link at a bounded rate (`ingress_bytes_per_s` in `router-tls.json5`, the workspace's
+//! patched zenoh-link-tls): the attacker's excess waits in its own connections.
 //!
-//! To see the test fail on other configurations: `HMDP_TLS_PLANNER_CONFIG=planner-tls.json5`
-//! runs the planner with another file of `deploy/zenoh/` (there: on a TLS link to the
-//! router), and `HMDP_TLS_WITHOUT_QOS=1` removes the `plan-replies-never-block` rule from
-//! every file (replies then block on the attacker's full link, as when issue 12 was filed).
+//! Asserted: the router and the planner live through the attack, the attack happened, the
+//! normal vehicle gets every answer within its own wait for it (a second) and at most 1 % of
+//! them are watchdog fallbacks (counts, never timings). CI runs 5 s of attack; the 20 s
+//! measurement of docs/deploy.md is an ignored test with the same assertions.
+//!
+//! To see the test fail on other configurations: `HMDP_TLS_WITHOUT_INGRESS_LIMIT=1` removes
+//! the ingress limit from the router's TLS listener (the vehicle's answers come late again),
+//! `HMDP_TLS_PLANNER_CONFIG=planner-tls.json5` runs the planner with another file of
+//! `deploy/zenoh/` (there: on a TLS link to the router), and `HMDP_TLS_WITHOUT_QOS=1` removes
+//! the `plan-replies-never-block` rule from every file (replies then block on the attacker's
+//! full link, as when issue 12 was filed).
 //!
 //! The attacker is this test executable run again as a child process in the role
 //! [`never_reading_tls_attacker`].
@@ -41,9 +48,11 @@ const PLANNER_CONFIG: &str = "HMDP_TLS_PLANNER_CONFIG";
 const SHIPPED_PLANNER_CONFIG: &str = "planner-local.json5";
 /// Environment variable: `1` removes the QoS rule from the router's and the planner's files.
 const WITHOUT_QOS: &str = "HMDP_TLS_WITHOUT_QOS";
+/// Environment variable: `1` removes the ingress limit from the router's TLS listener.
+const WITHOUT_INGRESS_LIMIT: &str = "HMDP_TLS_WITHOUT_INGRESS_LIMIT";
 /// Attacker sessions, as in the probe that killed the planner (issue 12).
 const ATTACK_SESSIONS: u64 = 3;
-/// The normal vehicle's requests in the goal's measurement, at 20 Hz (20 s of attack).
+/// The normal vehicle's requests in the longer measurement, at 20 Hz (20 s of attack).
 const REQUESTS: u64 = 400;
 /// In CI: 5 s of attack (each lost request costs the vehicle its 1 s wait, and the attack
 /// takes both cores of a small machine while it lasts).
@@ -92,6 +101,23 @@ fn maybe_without_qos(file: std::path::PathBuf) -> std::path::PathBuf {
     file
 }
 
+/// The router's `file` without its TLS listener's ingress limit if `WITHOUT_INGRESS_LIMIT`
+/// asks for it.
+fn maybe_without_ingress_limit(file: std::path::PathBuf) -> std::path::PathBuf {
+    if std::env::var(WITHOUT_INGRESS_LIMIT).as_deref() != Ok("1") {
+        return file;
+    }
+    let text = std::fs::read_to_string(&file).unwrap();
+    let limit = format!(
+        ";ingress_bytes_per_s={};ingress_burst_bytes={}",
+        transport::zenoh::TLS_INGRESS_BYTES_PER_S,
+        transport::zenoh::TLS_INGRESS_BURST_BYTES
+    );
+    assert!(text.contains(&limit), "{} no longer sets {limit}", file.display());
+    std::fs::write(&file, text.replace(&limit, "")).unwrap();
+    file
+}
+
 /// The last count the attacker printed.
 fn attacker_sent(log: &std::path::Path) -> u64 {
     std::fs::read_to_string(log)
@@ -102,26 +128,29 @@ fn attacker_sent(log: &std::path::Path) -> u64 {
         .unwrap_or(0)
 }
 
-/// What CI holds: the processes live through the attack, the attack happened, and what the
-/// normal vehicle got was decided by the solver, not the watchdog.
+/// What CI holds: the processes live through 5 s of attack, the attack happened, and the
+/// normal vehicle got every answer within its wait, decided by the solver, not the watchdog.
 #[test]
 fn never_reading_tls_peers_kill_nothing() {
     let figures = run_attack(CI_REQUESTS);
-    assert!(figures.answered > 0, "locked out: {figures:?}");
-    assert!(figures.watchdog <= CI_REQUESTS / 100, "{figures:?}");
+    assert_costs_nothing(&figures, CI_REQUESTS);
 }
 
-/// The goal of zero lost queries for the normal vehicle (issue 30.1), not reached: with the
-/// patched zenoh-link-tls the vehicle still gets 39 to 56 of 100 answers within a second on
-/// this 2-core machine: the others come late, behind the attacker's queries on the router's
-/// link to the planner (docs/deploy.md, "TLS links"). Run it with
-/// `cargo nextest run -p system_tests --run-ignored only -E 'test(cost_other_vehicles_nothing)'`.
+/// The same over 20 s of attack, the measurement of docs/deploy.md ("TLS links"). Run it
+/// with `cargo nextest run -p system_tests --run-ignored only -E
+/// 'test(cost_other_vehicles_nothing)'`.
 #[test]
-#[ignore = "open: the normal vehicle still loses queries under the TLS attack (docs/deploy.md)"]
+#[ignore = "20 s of attack on both cores; CI runs the 5 s one (never_reading_tls_peers_kill_nothing)"]
 fn never_reading_tls_peers_cost_other_vehicles_nothing() {
     let figures = run_attack(REQUESTS);
-    assert_eq!(figures.answered, figures.sent, "{figures:?}");
-    assert!(figures.watchdog <= REQUESTS / 100, "{figures:?}");
+    assert_costs_nothing(&figures, REQUESTS);
+}
+
+/// Every one of the normal vehicle's requests answered within its wait, at most 1 % of them
+/// by the watchdog.
+fn assert_costs_nothing(figures: &system_tests::VictimFigures, requests: u64) {
+    assert_eq!(figures.answered, figures.sent, "answers lost or late: {figures:?}");
+    assert!(figures.watchdog <= requests / 100, "{figures:?}");
 }
 
 /// Starts the shipped TLS deployment and the attacker, drives the normal vehicle through the
@@ -130,7 +159,7 @@ fn never_reading_tls_peers_cost_other_vehicles_nothing() {
 fn run_attack(requests: u64) -> system_tests::VictimFigures {
     let tls = TlsFiles::new("tls-never-reading", &[]);
     let planner_file = std::env::var(PLANNER_CONFIG).unwrap_or_else(|_| SHIPPED_PLANNER_CONFIG.into());
-    let router_config = maybe_without_qos(tls.render("router-tls.json5"));
+    let router_config = maybe_without_ingress_limit(maybe_without_qos(tls.render("router-tls.json5")));
     let mut router = Process::start(
         "hmdp-router",
         &["--config", router_config.to_str().unwrap()],

@@ -28,6 +28,7 @@ use zenoh_protocol::{
 };
 use zenoh_result::ZResult;
 
+mod ingress;
 mod unicast;
 mod utils;
 pub use unicast::*;

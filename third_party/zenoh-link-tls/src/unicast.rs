@@ -24,7 +24,7 @@ use std::{
 use async_trait::async_trait;
 use time::OffsetDateTime;
 use tokio::{
-    io::{AsyncReadExt, AsyncWriteExt, ReadHalf, WriteHalf},
+    io::{AsyncWriteExt, ReadHalf, WriteHalf},
     net::{TcpListener, TcpStream},
     sync::Mutex as AsyncMutex,
 };
@@ -46,6 +46,7 @@ use zenoh_protocol::{
 use zenoh_result::{zerror, ZResult};
 
 use crate::{
+    ingress::{IngressLimit, IngressReader},
     utils::{get_tls_addr, get_tls_host, get_tls_server_name, TlsClientConfig, TlsServerConfig},
     TLS_ACCEPT_THROTTLE_TIME, TLS_DEFAULT_MTU, TLS_LINGER_TIMEOUT, TLS_LOCATOR_PREFIX,
 };
@@ -59,7 +60,9 @@ pub struct LinkUnicastTls {
     // task through an `UnsafeCell`, so both drove one rustls connection at once (undefined
     // behaviour, eclipse-zenoh/zenoh#2557; a router with never-reading TLS peers died of it).
     // `split` serialises the halves' polls on one lock, held only for the duration of a poll.
-    reader: AsyncMutex<ReadHalf<TlsStream<TcpStream>>>,
+    // The reading half carries the link's ingress rate limit, if its listener sets one
+    // (`crate::ingress`, also a patch).
+    reader: AsyncMutex<IngressReader<ReadHalf<TlsStream<TcpStream>>>>,
     writer: AsyncMutex<WriteHalf<TlsStream<TcpStream>>>,
     // The source socket address of this link (address used on the local host)
     src_addr: SocketAddr,
@@ -79,6 +82,7 @@ impl LinkUnicastTls {
         dst_addr: SocketAddr,
         auth_identifier: LinkAuthId,
         expiration_manager: Option<LinkCertExpirationManager>,
+        ingress_limit: Option<IngressLimit>,
     ) -> LinkUnicastTls {
         let (tcp_stream, _) = socket.get_ref();
         // Set the TLS nodelay option
@@ -130,7 +134,7 @@ impl LinkUnicastTls {
         // Build the Tls object
         let (reader, writer) = tokio::io::split(socket);
         LinkUnicastTls {
-            reader: AsyncMutex::new(reader),
+            reader: AsyncMutex::new(IngressReader::new(reader, ingress_limit, dst_addr)),
             writer: AsyncMutex::new(writer),
             src_addr,
             src_locator: Locator::new(TLS_LOCATOR_PREFIX, src_addr.to_string(), "").unwrap(),
@@ -373,6 +377,7 @@ impl LinkManagerUnicastTrait for LinkManagerUnicastTls {
                 dst_addr,
                 auth_identifier.into(),
                 expiration_manager,
+                None,
             )
         });
 
@@ -415,6 +420,7 @@ impl LinkManagerUnicastTrait for LinkManagerUnicastTls {
                     manager,
                     tls_server_config.tls_handshake_timeout,
                     tls_server_config.tls_close_link_on_expiration,
+                    tls_server_config.ingress_limit,
                 )
                 .await
             }
@@ -467,6 +473,7 @@ async fn accept_task(
     manager: NewLinkChannelSender,
     tls_handshake_timeout: Duration,
     tls_close_link_on_expiration: bool,
+    ingress_limit: Option<IngressLimit>,
 ) -> ZResult<()> {
     let src_addr = socket.local_addr().map_err(|e| {
         let e = zerror!("Can not accept TLS connections: {}", e);
@@ -542,6 +549,7 @@ async fn accept_task(
                                 dst_addr,
                                 auth_identifier.into(),
                                 expiration_manager,
+                                ingress_limit,
                             )
                         });
 

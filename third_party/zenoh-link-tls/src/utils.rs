@@ -46,6 +46,8 @@ use zenoh_protocol::core::{
 };
 use zenoh_result::{bail, zerror, ZError, ZResult};
 
+use crate::ingress::{IngressLimit, TLS_INGRESS_BURST_BYTES, TLS_INGRESS_BYTES_PER_S};
+
 #[derive(Default, Clone, Copy, Debug)]
 pub struct TlsConfigurator;
 
@@ -177,6 +179,9 @@ pub(crate) struct TlsServerConfig<'a> {
     pub(crate) tls_handshake_timeout: Duration,
     pub(crate) tls_close_link_on_expiration: bool,
     pub(crate) tcp_socket_config: TcpSocketConfig<'a>,
+    // Patched for the HMDP planner workspace: the accepted links' ingress rate limit
+    // (`crate::ingress`), from the listen endpoint's config.
+    pub(crate) ingress_limit: Option<IngressLimit>,
 }
 
 impl<'a> TlsServerConfig<'a> {
@@ -260,6 +265,12 @@ impl<'a> TlsServerConfig<'a> {
                 .unwrap_or(config::TLS_HANDSHAKE_TIMEOUT_MS_DEFAULT),
         );
 
+        let ingress_limit = IngressLimit::parse(
+            config.get(TLS_INGRESS_BYTES_PER_S),
+            config.get(TLS_INGRESS_BURST_BYTES),
+        )
+        .map_err(|e| zerror!("TLS ingress limit: {e}"))?;
+
         let mut tcp_rx_buffer_size = None;
         if let Some(size) = config.get(TCP_SO_RCV_BUF) {
             tcp_rx_buffer_size = Some(
@@ -283,6 +294,7 @@ impl<'a> TlsServerConfig<'a> {
             server_config: sc,
             tls_handshake_timeout,
             tls_close_link_on_expiration,
+            ingress_limit,
             tcp_socket_config: TcpSocketConfig::new(
                 tcp_tx_buffer_size,
                 tcp_rx_buffer_size,

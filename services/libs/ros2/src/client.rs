@@ -2,22 +2,24 @@
 //! with a blocking API; and [`DecisionSubscriber`] for the answers the planner publishes.
 //!
 //! One `PlanClient` serves any number of threads at once: each [`PlanClient::exchange`]
-//! registers its request's RMW id before the request leaves, and the client's thread
-//! (`ros2-client`, asleep in a mio poll on the reply reader) hands each answer to the
-//! exchange waiting for that id. Every client reads every answer on the one reply topic,
-//! so answers to other clients, and late answers to requests that have timed out, are
-//! dropped there: an exchange only ever returns the answer to its own request, and checks
-//! that it echoes the request's vehicle id and sequence.
+//! registers its request's RMW id before the request leaves, then waits for the answer to
+//! that id. The client has no thread of its own: one waiting exchange at a time (the
+//! leader) sleeps in the mio poll on the reply reader and routes every answer it takes to
+//! the exchange waiting for its id; the others sleep on a condition variable until their
+//! answer is routed or the leader leaves, and one of them then leads. An exchange alone
+//! (a vehicle's usual case) is thus woken by RustDDS's event loop directly, one thread
+//! handoff fewer than a reply thread passing the answer on. Every client reads every
+//! answer on the one reply topic, so answers to other clients, and late answers to
+//! requests that have timed out, are dropped there: an exchange only ever returns the
+//! answer to its own request, and checks that it echoes the request's vehicle id and
+//! sequence.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError, SyncSender};
-use std::sync::{Arc, Mutex, PoisonError};
-use std::thread::{self, JoinHandle};
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use protocol::{PlanRequest, PlanResponse};
-use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token, Waker};
+use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::{Client, RmwRequestId, ServiceMapping, Subscription};
 use tracing::{debug, warn};
 
@@ -44,26 +46,29 @@ impl Default for ClientOptions {
 /// An exchange waiting for its answer.
 struct Waiter {
     ids: (u64, u64),
-    answer: SyncSender<IncomingResponse>,
+    answer: Option<IncomingResponse>,
 }
 
-/// Fields drop in order: the DDS entities before their node.
-struct ClientShared {
+/// The exchanges waiting, and whether one of them is polling the reply reader.
+#[derive(Default)]
+struct Waiting {
+    by_id: BTreeMap<RmwRequestId, Waiter>,
+    leader: bool,
+}
+
+/// A blocking client of the planner's ROS 2 service. Fields drop in order: the DDS
+/// entities before their node.
+pub struct PlanClient {
     client: Client<msg::PlanServiceRequest, IncomingResponse>,
-    waiting: Mutex<BTreeMap<RmwRequestId, Waiter>>,
+    waiting: Mutex<Waiting>,
+    /// Notified when an answer is routed to a waiting exchange or the leader leaves.
+    turn: Condvar,
+    /// The reply reader's poll; only the leader locks it.
+    poll: Mutex<(Poll, Events)>,
     running: RunningNode,
 }
 
-/// A blocking client of the planner's ROS 2 service. Stops its threads on drop.
-pub struct PlanClient {
-    shared: Arc<ClientShared>,
-    stop: Arc<AtomicBool>,
-    waker: Waker,
-    thread: Option<JoinHandle<()>>,
-}
-
 const REPLIES: Token = Token(0);
-const WAKE: Token = Token(1);
 
 /// The service's DDS topics and types (`rq/` and `rr/` + the service name, the
 /// `srv::dds_` types), as ros2-client names them.
@@ -99,28 +104,12 @@ impl PlanClient {
         poll.registry()
             .register(&mut client, REPLIES, Interest::READABLE)
             .map_err(io)?;
-        let waker = Waker::new(poll.registry(), WAKE).map_err(io)?;
-        let shared = Arc::new(ClientShared {
-            client,
-            waiting: Mutex::new(BTreeMap::new()),
-            running,
-        });
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread = {
-            let (shared, stop) = (Arc::clone(&shared), Arc::clone(&stop));
-            thread::Builder::new()
-                .name("ros2-client".to_owned())
-                .spawn(move || reply_loop(poll, &shared, &stop))
-                .map_err(|source| Ros2Error::Io {
-                    what: "the client thread",
-                    source,
-                })?
-        };
         Ok(Self {
-            shared,
-            stop,
-            waker,
-            thread: Some(thread),
+            client,
+            waiting: Mutex::new(Waiting::default()),
+            turn: Condvar::new(),
+            poll: Mutex::new((poll, Events::with_capacity(16))),
+            running,
         })
     }
 
@@ -137,7 +126,7 @@ impl PlanClient {
             service: SERVICE_NAME,
             waited: timeout,
         };
-        let running = &self.shared.running;
+        let running = &self.running;
         let matched = running.wait_until(timeout, || {
             let p = &running.participant;
             discovered(p, Endpoint::Reader, REQUEST_TOPIC_DDS, REQUEST_TYPE_DDS)
@@ -173,107 +162,124 @@ impl PlanClient {
     /// server answers one the protocol cannot hold with a typed rejection).
     pub fn exchange_msg(&self, request: msg::PlanRequest, wait: Duration) -> Result<Option<PlanResponse>, Ros2Error> {
         let deadline = Instant::now() + wait;
-        let (answer, answered) = mpsc::sync_channel(1);
         let ids = (request.vehicle_id, request.sequence);
-        let id = {
-            // Registered before it leaves, under the same lock the reply thread routes with,
-            // so that even an immediate answer finds its waiter.
-            let mut waiting = lock(&self.shared.waiting);
-            let id = self
-                .shared
-                .client
-                .send_request(msg::PlanServiceRequest { request })
-                .map_err(|e| Ros2Error::Send(e.to_string()))?;
-            waiting.insert(id, Waiter { ids, answer });
-            id
-        };
-        let received = answered.recv_timeout(deadline.saturating_duration_since(Instant::now()));
-        match received {
-            Ok(IncomingResponse::Decoded(message)) => Ok(Some(PlanResponse::try_from(message)?)),
-            Ok(IncomingResponse::Undecodable(error)) => Err(Ros2Error::UndecodableResponse(error)),
-            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {
-                lock(&self.shared.waiting).remove(&id);
-                // An answer may have slipped in between the timeout and the removal.
-                match answered.try_recv() {
-                    Ok(IncomingResponse::Decoded(message)) => Ok(Some(PlanResponse::try_from(message)?)),
-                    Ok(IncomingResponse::Undecodable(error)) => Err(Ros2Error::UndecodableResponse(error)),
-                    Err(_) if self.thread.as_ref().is_some_and(JoinHandle::is_finished) => Err(Ros2Error::Stopped),
-                    Err(_) => Ok(None),
-                }
+        let mut waiting = lock(&self.waiting);
+        // Registered before it leaves, under the lock answers are routed with, so that even
+        // an immediate answer finds its waiter.
+        let id = self
+            .client
+            .send_request(msg::PlanServiceRequest { request })
+            .map_err(|e| Ros2Error::Send(e.to_string()))?;
+        waiting.by_id.insert(id, Waiter { ids, answer: None });
+        let answer = loop {
+            if let Some(answer) = waiting.by_id.get_mut(&id).and_then(|w| w.answer.take()) {
+                break Some(answer);
             }
-        }
-    }
-}
-
-impl Drop for PlanClient {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Err(e) = self.waker.wake() {
-            warn!("cannot wake the client thread: {e}");
-        }
-        if let Some(handle) = self.thread.take() {
-            let _ = handle.join();
-        }
-    }
-}
-
-fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-fn reply_loop(mut poll: Poll, shared: &ClientShared, stop: &AtomicBool) {
-    let mut events = Events::with_capacity(16);
-    while !stop.load(Ordering::SeqCst) {
-        if let Err(e) = poll.poll(&mut events, None) {
-            if e.kind() == std::io::ErrorKind::Interrupted {
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            if remaining.is_zero() {
+                break None;
+            }
+            if waiting.leader {
+                waiting = self
+                    .turn
+                    .wait_timeout(waiting, remaining)
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .0;
                 continue;
             }
-            warn!("the ROS 2 client's poll failed, no more answers: {e}");
-            return;
-        }
-        if events.iter().any(|event| event.token() == REPLIES) {
-            drain_replies(shared);
+            waiting.leader = true;
+            drop(waiting);
+            let led = self.lead(id, deadline);
+            waiting = lock(&self.waiting);
+            waiting.leader = false;
+            // Other exchanges may be waiting for their answers: one of them leads now.
+            if waiting.by_id.len() > 1 {
+                self.turn.notify_all();
+            }
+            if let Err(e) = led {
+                waiting.by_id.remove(&id);
+                return Err(e);
+            }
+        };
+        waiting.by_id.remove(&id);
+        drop(waiting);
+        match answer {
+            Some(IncomingResponse::Decoded(message)) => Ok(Some(PlanResponse::try_from(message)?)),
+            Some(IncomingResponse::Undecodable(error)) => Err(Ros2Error::UndecodableResponse(error)),
+            None => Ok(None),
         }
     }
-}
 
-/// Takes every answer that has arrived (edge-triggered) and hands each to its exchange.
-fn drain_replies(shared: &ClientShared) {
-    let mut errors = 0;
-    loop {
-        match shared.client.receive_response() {
-            Ok(Some((id, response))) => route(shared, id, response),
-            Ok(None) => return,
-            Err(e) => {
-                warn!("cannot take an answer: {e}");
-                errors += 1;
-                if errors >= 16 {
-                    return;
+    /// As the leader: takes and routes answers until `mine` has its answer or `deadline`
+    /// passes. Answers that arrived while nobody polled are taken first.
+    fn lead(&self, mine: RmwRequestId, deadline: Instant) -> Result<(), Ros2Error> {
+        let mut guard = lock(&self.poll);
+        let (poll, events) = &mut *guard;
+        loop {
+            if self.drain_replies(mine) {
+                return Ok(());
+            }
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            if remaining.is_zero() {
+                return Ok(());
+            }
+            if let Err(e) = poll.poll(events, Some(remaining)) {
+                if e.kind() != std::io::ErrorKind::Interrupted {
+                    warn!("the ROS 2 client's poll failed: {e}");
+                    return Err(Ros2Error::Poll(e));
                 }
             }
         }
     }
-}
 
-fn route(shared: &ClientShared, id: RmwRequestId, response: IncomingResponse) {
-    let mut waiting = lock(&shared.waiting);
-    let Some(waiter) = waiting.get(&id) else {
-        // Another client's answer, or one that came after its exchange gave up.
-        return;
-    };
-    if let IncomingResponse::Decoded(message) = &response {
-        if (message.vehicle_id, message.sequence) != waiter.ids {
-            warn!(
-                expected = ?waiter.ids,
-                got = ?(message.vehicle_id, message.sequence),
-                "an answer with this request's id echoes another request; ignored"
-            );
-            return;
+    /// Takes every answer that has arrived and routes each to its exchange; whether `mine`
+    /// got its answer.
+    fn drain_replies(&self, mine: RmwRequestId) -> bool {
+        let mut errors = 0;
+        let mut answered = false;
+        loop {
+            match self.client.receive_response() {
+                Ok(Some((id, response))) => answered |= self.route(id, response, mine),
+                Ok(None) => return answered,
+                Err(e) => {
+                    warn!("cannot take an answer: {e}");
+                    errors += 1;
+                    if errors >= 16 {
+                        return answered;
+                    }
+                }
+            }
         }
     }
-    if let Some(waiter) = waiting.remove(&id) {
-        let _ = waiter.answer.try_send(response);
+
+    /// Hands `response` to the exchange waiting for `id`; whether that is `mine`.
+    fn route(&self, id: RmwRequestId, response: IncomingResponse, mine: RmwRequestId) -> bool {
+        let mut waiting = lock(&self.waiting);
+        let Some(waiter) = waiting.by_id.get_mut(&id) else {
+            // Another client's answer, or one that came after its exchange gave up.
+            return false;
+        };
+        if let IncomingResponse::Decoded(message) = &response {
+            if (message.vehicle_id, message.sequence) != waiter.ids {
+                warn!(
+                    expected = ?waiter.ids,
+                    got = ?(message.vehicle_id, message.sequence),
+                    "an answer with this request's id echoes another request; ignored"
+                );
+                return false;
+            }
+        }
+        waiter.answer = Some(response);
+        if id == mine {
+            return true;
+        }
+        self.turn.notify_all();
+        false
     }
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 /// Receives the answers the planner publishes on [`DECISIONS_TOPIC`] (every vehicle's),

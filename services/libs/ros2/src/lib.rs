@@ -90,9 +90,9 @@ pub enum Ros2Error {
     /// The answer decoded but the protocol cannot hold it (list over capacity, unknown code).
     #[error("invalid response: {0}")]
     InvalidResponse(#[from] ConvertError),
-    /// The client's background thread is gone (it panicked).
-    #[error("the ROS 2 client has stopped")]
-    Stopped,
+    /// Waiting on the client's reply reader failed (its mio poll).
+    #[error("the ROS 2 client cannot wait for answers: {0}")]
+    Poll(#[source] std::io::Error),
 }
 
 impl Ros2Error {

@@ -24,7 +24,7 @@
 //! request. A request whose lists exceed their bounds is undecodable with
 //! `capacity_exceeded` naming the list. Nothing a peer sends stops the node.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -127,6 +127,9 @@ struct Shared {
     marker_subscribers: Mutex<(bool, Option<Instant>)>,
     /// Participants (clients) whose reply reader has been discovered.
     reply_readers: Mutex<BTreeSet<ParticipantPrefix>>,
+    /// By a client's request writer: its reply reader, the only one its answers go to
+    /// once known (`None`: its participant has several, answers go to every reader).
+    reply_targets: Mutex<BTreeMap<GUID, Option<GUID>>>,
     received: AtomicU64,
     undecodable: AtomicU64,
     answered: AtomicU64,
@@ -197,16 +200,59 @@ impl Shared {
         })
     }
 
+    /// The reply reader to write the answer to request `id` to, `None` for every matched
+    /// reader. ros2-client writes an answer to every client's reply reader, and each client
+    /// drops the others' (with 8 vehicles, 7 needless datagrams, wake-ups and
+    /// acknowledgements per answer). The first answer to a client goes to every reader, as
+    /// before, and its reply reader is looked up; later answers go to that reader alone
+    /// (by then the writer has surely matched it: a reader the writer does not know yet
+    /// would get nothing).
+    fn reply_target(&self, id: &RmwRequestId) -> Option<GUID> {
+        let writer = GUID::from(id.writer_gid);
+        let mut targets = lock(&self.reply_targets);
+        if let Some(target) = targets.get(&writer) {
+            return *target;
+        }
+        let readers: Vec<GUID> = self
+            .running
+            .participant
+            .discovered_readers()
+            .iter()
+            .filter(|reader| reader.subscription_topic_data.topic_name == REPLY_TOPIC_DDS)
+            .map(|reader| reader.reader_proxy.remote_reader_guid)
+            .collect();
+        // rmw_fastrtps clients name their reply reader in the request's identity; others
+        // (ros2-client) their request writer: then the participant's one reply reader.
+        let target = if readers.contains(&writer) {
+            Some(writer)
+        } else {
+            let prefix = participant_prefix(writer);
+            let mut own = readers.iter().filter(|r| participant_prefix(**r) == prefix);
+            match (own.next(), own.next()) {
+                (Some(reader), None) => Some(*reader),
+                (Some(_), Some(_)) => None,
+                // Not discovered yet: look again at the next answer.
+                (None, _) => return None,
+            }
+        };
+        if targets.len() >= MAX_REPLY_TARGETS {
+            targets.clear();
+        }
+        targets.insert(writer, target);
+        None
+    }
+
     /// Answers the client first (what it waits for), then the topics if anyone listens.
     fn answer(&self, id: RmwRequestId, request: Option<&PlanRequest>, response: PlanResponse) {
         self.await_reply_reader(&id);
         let message = msg::PlanResponse::from(&response);
-        let sent = self.server.send_response(
-            id,
-            msg::PlanServiceResponse {
-                response: message.clone(),
-            },
-        );
+        let service_response = msg::PlanServiceResponse {
+            response: message.clone(),
+        };
+        let sent = match self.reply_target(&id) {
+            Some(reader) => self.server.send_response_to_reader(id, reader, service_response),
+            None => self.server.send_response(id, service_response),
+        };
         match sent {
             Ok(()) => self.answered.fetch_add(1, Ordering::Relaxed),
             Err(e) => {
@@ -310,6 +356,7 @@ impl PlanServer {
             markers_for: options.markers,
             marker_subscribers: Mutex::new((false, None)),
             reply_readers: Mutex::new(BTreeSet::new()),
+            reply_targets: Mutex::new(BTreeMap::new()),
             received: AtomicU64::new(0),
             undecodable: AtomicU64::new(0),
             answered: AtomicU64::new(0),
@@ -400,6 +447,10 @@ impl Drop for PlanServer {
 /// The participant part (first 12 bytes) of a DDS GUID: a client's request writer and its
 /// reply reader share it.
 type ParticipantPrefix = [u8; 12];
+
+/// Clients whose reply reader [`Shared::reply_target`] remembers; beyond, it starts again
+/// (clients come and go over a long run).
+const MAX_REPLY_TARGETS: usize = 4096;
 
 fn participant_prefix(guid: GUID) -> ParticipantPrefix {
     let bytes = guid.to_bytes();

@@ -195,6 +195,68 @@ fn rejections_arrive_as_sent_and_late_answers_are_not_taken_for_newer_requests()
     server.stop();
 }
 
+/// The client has no thread of its own: the first waiting exchange polls the reply reader
+/// and routes the others' answers. Here it gives up (a short wait) while two others wait
+/// for answers that come only afterwards: one of them must take over the polling, or both
+/// time out with their answers unread.
+#[test]
+fn a_waiting_exchange_takes_over_when_the_polling_one_leaves() {
+    common::setup();
+    let (arrived, arrivals) = mpsc::channel::<(u64, Reply)>();
+    let arrived = Mutex::new(arrived);
+    let options = ServerOptions {
+        node: common::node("hmdp_planner", 5),
+        ..ServerOptions::default()
+    };
+    let server = PlanServer::start(options, move |incoming, _, reply| {
+        let Incoming::Request(request) = incoming else {
+            panic!("only decodable requests here");
+        };
+        if request.is_probe() {
+            reply(common::canned_decision(request.vehicle_id, request.sequence));
+            return;
+        }
+        arrived.lock().unwrap().send((request.vehicle_id, reply)).unwrap();
+    })
+    .expect("the server starts");
+    let client = Arc::new(client(5, "hmdp_vehicle_takeover"));
+    client.wait_for_service(DISCOVERY).expect("the server is found");
+
+    // Vehicle 1 asks first and alone, so it is the one polling; it waits 300 ms.
+    let first = {
+        let client = Arc::clone(&client);
+        thread::spawn(move || client.exchange(&common::worked_example(1, 1), Duration::from_millis(300)))
+    };
+    let (vehicle, reply_1) = arrivals.recv_timeout(WAIT).expect("vehicle 1's request arrives");
+    assert_eq!(vehicle, 1);
+    let others: Vec<_> = (2..=3u64)
+        .map(|vehicle| {
+            let client = Arc::clone(&client);
+            thread::spawn(move || client.exchange(&common::worked_example(vehicle, 1), WAIT))
+        })
+        .collect();
+    let mut replies: Vec<_> = (0..2)
+        .map(|_| arrivals.recv_timeout(WAIT).expect("the others' requests arrive"))
+        .collect();
+    assert_eq!(
+        first.join().unwrap().expect("no error"),
+        None,
+        "vehicle 1 was not answered"
+    );
+
+    replies.sort_by_key(|(vehicle, _)| *vehicle);
+    for (vehicle, reply) in replies {
+        reply(common::canned_decision(vehicle, 1));
+    }
+    for (vehicle, other) in (2..=3u64).zip(others) {
+        let answer = other.join().unwrap().expect("no error").expect("answered");
+        assert_eq!(answer, common::canned_decision(vehicle, 1));
+    }
+    // Vehicle 1's answer, late: nobody takes it.
+    reply_1(common::canned_decision(1, 1));
+    server.stop();
+}
+
 #[test]
 fn without_a_server_waiting_fails_in_time() {
     common::setup();

@@ -127,6 +127,18 @@ pub const ACCEPT_PENDING: usize = 1000;
 /// `deploy/zenoh/router-tls.json5`.
 pub const TLS_HANDSHAKE_TIMEOUT_MS: u64 = 5000;
 
+/// The most each link a TLS listener accepts may send, bytes of TLS plaintext a second:
+/// a vehicle's link is read no faster, and what it sends beyond waits in its own TCP
+/// connection. About 1.8 times a vehicle sending 64 SVs in JSON at 20 Hz, 6 times the
+/// same in bincode (docs/deploy.md, "TLS links"). The workspace's patched zenoh-link-tls
+/// takes it from the listen endpoint (`...#ingress_bytes_per_s=524288`), as in
+/// `deploy/zenoh/router-tls.json5`; Zenoh's own TLS links have no such limit.
+pub const TLS_INGRESS_BYTES_PER_S: u64 = 512 * 1024;
+
+/// The burst a TLS link may send at once beyond [`TLS_INGRESS_BYTES_PER_S`], bytes
+/// (`...#ingress_burst_bytes=262144`): 18 requests of 64 SVs in JSON, 60 in bincode.
+pub const TLS_INGRESS_BURST_BYTES: u64 = 256 * 1024;
+
 /// Largest Zenoh message any session of the project accepts (a request is at most a few
 /// KiB, see docs/protocol.md). Zenoh's own default is 1 GiB: a peer could make the planner
 /// buffer that much for one query. A larger message is dropped while it is reassembled,
@@ -396,13 +408,21 @@ mod tests {
             .unwrap_or_default()
     }
 
-    /// A TLS listener's handshake timeout (Zenoh's default: 10 s), set in its endpoint.
-    fn assert_tls_handshake_bounded(endpoints: &[String], what: &str) {
-        for endpoint in endpoints {
-            if endpoint.starts_with("tls/") {
-                assert!(
-                    endpoint.contains(&format!("#tls_handshake_timeout_ms={TLS_HANDSHAKE_TIMEOUT_MS}")),
-                    "{what}: {endpoint} without tls_handshake_timeout_ms={TLS_HANDSHAKE_TIMEOUT_MS}"
+    /// A TLS listener's handshake timeout (Zenoh's default: 10 s) and its links' ingress
+    /// limit (none by default), set in its endpoint.
+    fn assert_tls_listeners_bounded(endpoints: &[String], what: &str) {
+        for endpoint in endpoints.iter().filter(|e| e.starts_with("tls/")) {
+            let parsed: zenoh::config::EndPoint = endpoint.parse().unwrap();
+            let config = parsed.config();
+            for (key, value) in [
+                ("tls_handshake_timeout_ms", TLS_HANDSHAKE_TIMEOUT_MS),
+                ("ingress_bytes_per_s", TLS_INGRESS_BYTES_PER_S),
+                ("ingress_burst_bytes", TLS_INGRESS_BURST_BYTES),
+            ] {
+                assert_eq!(
+                    config.get(key),
+                    Some(value.to_string().as_str()),
+                    "{what}: {endpoint}: {key}"
                 );
             }
         }
@@ -435,7 +455,7 @@ mod tests {
                 let listen = endpoints(&config, "listen/endpoints");
                 if planner || !listen.is_empty() {
                     assert_accepts_under_floods(&config, &path.display().to_string());
-                    assert_tls_handshake_bounded(&listen, &path.display().to_string());
+                    assert_tls_listeners_bounded(&listen, &path.display().to_string());
                     admitting += 1;
                 }
                 let endpoints: serde_json::Value =
