@@ -8,9 +8,10 @@
 //! the exchange waiting for its id; the others sleep on a condition variable until their
 //! answer is routed or the leader leaves, and one of them then leads. An exchange alone
 //! (a vehicle's usual case) is thus woken by RustDDS's event loop directly, one thread
-//! handoff fewer than a reply thread passing the answer on. Every client reads every
-//! answer on the one reply topic, so answers to other clients, and late answers to
-//! requests that have timed out, are dropped there: an exchange only ever returns the
+//! handoff fewer than a reply thread passing the answer on. A client may read answers
+//! to other clients on the one reply topic (the planner's first answer to each client goes
+//! to every reply reader); those, and late answers to requests that have timed out, are
+//! dropped there: an exchange only ever returns the
 //! answer to its own request, and checks that it echoes the request's vehicle id and
 //! sequence.
 

@@ -14,8 +14,8 @@
 //!
 //! QoS, chosen to match rclpy's defaults (peers must agree on reliability and durability,
 //! not on depth): the service's request reader and reply writer are reliable, volatile,
-//! keep-last 100 (rclpy: 10; deeper because every client reads every answer on the one
-//! reply topic); the two topics are reliable, volatile, keep-last 10. The service mapping is
+//! keep-last 100 (rclpy: 10; deeper because a client's first answer, and every answer to
+//! a participant with several reply readers, goes to every client's reply reader); the two topics are reliable, volatile, keep-last 10. The service mapping is
 //! DDS-RPC "Enhanced" (the request id in the inline QoS), the one rmw_fastrtps uses.
 //!
 //! A payload that does not decode as a `Plan` request (a peer with another `hmdp_msgs`)
@@ -24,7 +24,7 @@
 //! request. A request whose lists exceed their bounds is undecodable with
 //! `capacity_exceeded` naming the list. Nothing a peer sends stops the node.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -125,9 +125,8 @@ struct Shared {
     markers_for: MarkersFor,
     /// Whether a marker subscriber was discovered, and when that was last looked up.
     marker_subscribers: Mutex<(bool, Option<Instant>)>,
-    /// Participants (clients) whose reply reader has been discovered.
-    reply_readers: Mutex<BTreeSet<ParticipantPrefix>>,
-    /// By a client's request writer: its reply reader, the only one its answers go to
+    /// By a client's request writer (present once its participant's reply reader has
+    /// been discovered): its reply reader, the only one its answers go to
     /// once known (`None`: its participant has several, answers go to every reader).
     reply_targets: Mutex<BTreeMap<GUID, Option<GUID>>>,
     received: AtomicU64,
@@ -177,18 +176,17 @@ impl Shared {
     /// before the writer knows the reader is lost for good. A client's first request can
     /// outrun its reply reader's discovery (the client saw the server's endpoints first);
     /// rmw_fastrtps waits the same way (100 ms) before sending a response. Later answers
-    /// to the same client find it in `reply_readers` at once.
+    /// to the same client find it in `reply_targets` at once.
     fn await_reply_reader(&self, id: &RmwRequestId) {
-        let prefix = participant_prefix(GUID::from(id.writer_gid));
-        if lock(&self.reply_readers).contains(&prefix) {
+        let writer = GUID::from(id.writer_gid);
+        if lock(&self.reply_targets).contains_key(&writer) {
             return;
         }
-        if self
+        let prefix = participant_prefix(writer);
+        if !self
             .running
             .wait_until(REPLY_READER_WAIT, || self.reply_reader_discovered(prefix))
         {
-            lock(&self.reply_readers).insert(prefix);
-        } else {
             debug!(?prefix, "the client's reply reader is not discovered; answering anyway");
         }
     }
@@ -355,7 +353,6 @@ impl PlanServer {
             markers,
             markers_for: options.markers,
             marker_subscribers: Mutex::new((false, None)),
-            reply_readers: Mutex::new(BTreeSet::new()),
             reply_targets: Mutex::new(BTreeMap::new()),
             received: AtomicU64::new(0),
             undecodable: AtomicU64::new(0),
