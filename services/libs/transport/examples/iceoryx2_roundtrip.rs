@@ -95,6 +95,7 @@ fn answer(responder: Responder, received: Instant, solve: Duration, ledger: &Led
     let solve_end = Instant::now();
     let r = responder.request();
     let key = (r.vehicle_id, r.sequence);
+    // Any answer will do: every `PlanResponse` occupies the same fixed-size slot in shared memory.
     let response = PlanResponse::rejected(r.vehicle_id, r.sequence, Rejected::new(RejectReason::Malformed, ""), 0);
     if let Err(e) = responder.respond(response) {
         eprintln!("answer {key:?} not sent: {e}");
