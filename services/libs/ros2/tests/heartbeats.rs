@@ -4,7 +4,7 @@
 //! their samples through the shared cache and never acknowledge), so every writer with a
 //! local reader, the discovery (SEDP) writers always, heartbeats every remote reader ten
 //! times a second for as long as it lives, and every reader answers each heartbeat. With
-//! 8 vehicles and the planner that was about 5,000 datagrams a second on loopback for 20
+//! 8 vehicles and the planner that was about 4,700 datagrams a second on loopback for 20
 //! exchanges. The workspace patches RustDDS (third_party/rustdds/PATCHED.md); this test
 //! counts the heartbeats RustDDS's writers send while nothing is written.
 //!
