@@ -124,7 +124,8 @@ impl Default for EgoModel {
 pub struct IdmParams {
     /// Jam distance `d0`, m.
     pub jam_distance_m: f64,
-    /// Desired time headway `T`, s.
+    /// Desired time headway `T`, s. The paper gives no value; 1.0 s is the IDM's highway
+    /// value (formulation.md: 1.5; see docs/formulation-notes.md, "Time headway and band width").
     pub time_headway_s: f64,
     /// Maximum acceleration `a`, m/s^2.
     pub max_accel_mps2: f64,
@@ -167,7 +168,7 @@ impl Default for IdmParams {
     fn default() -> Self {
         Self {
             jam_distance_m: 2.0,
-            time_headway_s: 1.5,
+            time_headway_s: 1.0,
             max_accel_mps2: 1.5,
             comfort_decel_mps2: 2.0,
             speed_dependent: true,
@@ -279,6 +280,8 @@ impl Default for Perception {
 pub struct Hysteresis {
     /// Off: no corrective regime, every SV gets the plain chance constraint (Case 2 baseline).
     pub enabled: bool,
+    /// The band's share of `d_idm`, `eps_trig = clamp(k_eps d_idm, eps_min, eps_max)`. The
+    /// paper gives no value (formulation.md: 0.5).
     pub k_eps: f64,
     pub eps_min_m: f64,
     pub eps_max_m: f64,
@@ -316,7 +319,7 @@ impl Default for Hysteresis {
     fn default() -> Self {
         Self {
             enabled: true,
-            k_eps: 0.5,
+            k_eps: 0.25,
             eps_min_m: 6.0,
             eps_max_m: 22.0,
             gamma1: 1.0,
@@ -373,6 +376,10 @@ pub struct CostWeights {
     pub w_lane_speed: f64,
     /// How far ahead an SV counts as holding a lane's speed, m.
     pub lane_lookahead_m: f64,
+    /// The time over which the lane value averages the speed a lane lets the ego hold, s: a
+    /// slower SV ahead holds the lane at its own speed only from when the ego would reach it,
+    /// so a far one weighs in gradually (0: at its full weight from any distance).
+    pub lane_horizon_s: f64,
     /// Per m/s^2 of planned braking per step (with `ego.continuous_accel`).
     pub w_brake: f64,
     /// Per change of the longitudinal maneuver state (an action with `d_long != 0`): the
@@ -395,7 +402,8 @@ impl Default for CostWeights {
             w_speed: 1.0,
             w_speed_terminal: 4.0,
             w_lane_speed: 3.0,
-            lane_lookahead_m: 100.0,
+            lane_lookahead_m: 200.0,
+            lane_horizon_s: 60.0,
             w_brake: 1.0,
             w_switch: 4.0,
             w_hard_brake: 20.0,
@@ -522,6 +530,9 @@ impl PlannerConfig {
                 &c.w_speed_terminal,
                 &c.w_hard_brake,
                 &c.w_firm_brake,
+                &c.w_lane_speed,
+                &c.lane_lookahead_m,
+                &c.lane_horizon_s,
             ])
             .any(|w| !(w.is_finite() && *w >= 0.0))
         {

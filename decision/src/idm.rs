@@ -113,10 +113,11 @@ pub fn thresholds(h: &Hysteresis, d_idm: f64, d_hc: f64) -> Thresholds {
 mod tests {
     use super::*;
 
-    /// The IDM distance alone, without the least time headway.
+    /// The IDM distance alone, without the least time headway, with `T = 1.5` s.
     fn idm_alone() -> IdmParams {
         IdmParams {
             min_time_headway_s: 0.0,
+            time_headway_s: 1.5,
             ..IdmParams::default()
         }
     }
@@ -185,7 +186,10 @@ mod tests {
 
     #[test]
     fn thresholds_clamp_the_band() {
-        let h = Hysteresis::default();
+        let h = Hysteresis {
+            k_eps: 0.5,
+            ..Hysteresis::default()
+        };
         // k_eps * d_idm = 0.5 * 8 = 4 < eps_min = 6.
         let t = thresholds(&h, 8.0, 9.0);
         assert_eq!(t.band, 6.0);

@@ -483,10 +483,28 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
 }
 
 /// Terminal lane values: the speed the ego could hold in each lane beyond the horizon is its
-/// desired speed, or less when an SV ahead in that lane (within the lookahead) is slower.
+/// desired speed, or less when an SV ahead in that lane (within the lookahead) is slower. Such
+/// an SV holds the lane at its speed only once the ego has closed in to the SV's IDM distance
+/// at the desired speed, after `t_reach`; over `cost.lane_horizon_s` the lane lets the ego
+/// average `v_sv + (v_des - v_sv) min(1, t_reach / lane_horizon_s)`, and the slowest SV's average
+/// counts. A far slow SV thus weighs in gradually, not from a cut-off distance on.
 fn lane_values(config: &PlannerConfig, s: &Situation) -> Vec<f64> {
     let (road, ego) = (&s.road, &s.ego);
     let tol = config.vehicle.lane_centre_tolerance_m;
+    let v_des = ego.desired_speed_mps;
+    let lane_speed = |sv: &SvObservation| {
+        if sv.v_mps >= v_des {
+            return v_des;
+        }
+        let gap = sv.x_m - ego.x_m - config.vehicle.length_m;
+        let t_reach = (gap - idm_distance(&config.idm, sv.v_mps, sv.v_mps)).max(0.0) / (v_des - sv.v_mps);
+        let share = if config.cost.lane_horizon_s > 0.0 {
+            (t_reach / config.cost.lane_horizon_s).min(1.0)
+        } else {
+            0.0
+        };
+        sv.v_mps + (v_des - sv.v_mps) * share
+    };
     (1..=road.lanes)
         .map(|lane| {
             let achievable = s
@@ -494,9 +512,9 @@ fn lane_values(config: &PlannerConfig, s: &Situation) -> Vec<f64> {
                 .iter()
                 .filter(|sv| sv.x_m > ego.x_m && sv.x_m - ego.x_m <= config.cost.lane_lookahead_m)
                 .filter(|sv| lanes_at(road, sv.y_m, tol).is_ok_and(|occ| occ.contains(lane)))
-                .map(|sv| sv.v_mps)
-                .fold(ego.desired_speed_mps, f64::min);
-            config.cost.w_lane_speed * (ego.desired_speed_mps - achievable).max(0.0)
+                .map(lane_speed)
+                .fold(v_des, f64::min);
+            config.cost.w_lane_speed * (v_des - achievable).max(0.0)
         })
         .collect()
 }
