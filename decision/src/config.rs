@@ -125,7 +125,7 @@ pub struct IdmParams {
     /// Jam distance `d0`, m.
     pub jam_distance_m: f64,
     /// Desired time headway `T`, s. The paper gives no value; 1.0 s is the IDM's highway
-    /// value (formulation.md: 1.5; see docs/formulation-notes.md, "Time headway and band width").
+    /// value (formulation.md: 1.5; see docs/following-and-lane-choice.md).
     pub time_headway_s: f64,
     /// Maximum acceleration `a`, m/s^2.
     pub max_accel_mps2: f64,
@@ -281,7 +281,8 @@ pub struct Hysteresis {
     /// Off: no corrective regime, every SV gets the plain chance constraint (Case 2 baseline).
     pub enabled: bool,
     /// The band's share of `d_idm`, `eps_trig = clamp(k_eps d_idm, eps_min, eps_max)`. The
-    /// paper gives no value (formulation.md: 0.5).
+    /// paper gives no value; 0.5 is formulation.md's (0.25 measured in
+    /// docs/following-and-lane-choice.md).
     pub k_eps: f64,
     pub eps_min_m: f64,
     pub eps_max_m: f64,
@@ -319,7 +320,7 @@ impl Default for Hysteresis {
     fn default() -> Self {
         Self {
             enabled: true,
-            k_eps: 0.25,
+            k_eps: 0.5,
             eps_min_m: 6.0,
             eps_max_m: 22.0,
             gamma1: 1.0,

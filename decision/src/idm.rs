@@ -186,10 +186,7 @@ mod tests {
 
     #[test]
     fn thresholds_clamp_the_band() {
-        let h = Hysteresis {
-            k_eps: 0.5,
-            ..Hysteresis::default()
-        };
+        let h = Hysteresis::default();
         // k_eps * d_idm = 0.5 * 8 = 4 < eps_min = 6.
         let t = thresholds(&h, 8.0, 9.0);
         assert_eq!(t.band, 6.0);

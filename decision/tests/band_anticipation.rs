@@ -35,11 +35,10 @@ fn following(v_ego: f64, gap_m: f64, release_m: f64) -> Situation {
     }
 }
 
-/// The distances below are worked out for `T = 1.5` s and `k_eps = 0.5` (formulation.md's).
+/// The distances below are worked out for `T = 1.5` s (formulation.md's).
 fn first_accel(anticipation_s: f64, s: &Situation) -> f64 {
     let mut config = PlannerConfig::default();
     config.idm.time_headway_s = 1.5;
-    config.hysteresis.k_eps = 0.5;
     config.hysteresis.anticipation_s = anticipation_s;
     let d = Planner::new(config).unwrap().decide(s).unwrap();
     assert_eq!(d.layer, Layer::Nominal, "{d:?}");

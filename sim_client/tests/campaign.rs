@@ -45,6 +45,23 @@ fn custom_configs_parse_from_toml_and_json() {
 }
 
 #[test]
+fn the_held_out_campaign_parses_and_lies_outside_table_i() {
+    let held_out = parse_entries(include_str!("../campaigns/held-out.toml"), false).unwrap();
+    assert_eq!(held_out.len(), 3);
+    let paper = paper_entries();
+    for e in &held_out {
+        let t = &e.traffic;
+        assert!(
+            !paper.iter().any(|p| p.traffic.lanes == t.lanes
+                && p.traffic.sv_count == t.sv_count
+                && p.traffic.speed_range == t.speed_range),
+            "configuration {} is one of Table I's",
+            e.id
+        );
+    }
+}
+
+#[test]
 fn trial_scaling_keeps_at_least_one_trial() {
     let e = scale_trials(&paper_entries(), 0.001).unwrap();
     assert_eq!(e.len(), 18);
