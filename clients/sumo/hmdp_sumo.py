@@ -114,14 +114,19 @@ def run(args, out_dir):
                         f"{metrics['mean_speed_mps']:.2f} m/s, {metrics['wall_s']:.1f} s",
                         file=sys.stderr,
                     )
-            results["scenarios"].append(
-                {
-                    "scenario": scenario_dict(s, path),
-                    "episodes": args.episodes,
-                    "drivers": {LABELS[d]: report.summarise(episodes[d]) for d in args.drivers},
-                    "episode_metrics": {LABELS[d]: [slim(e) for e in episodes[d]] for d in args.drivers},
+            entry = {
+                "scenario": scenario_dict(s, path),
+                "episodes": args.episodes,
+                "drivers": {LABELS[d]: report.summarise(episodes[d]) for d in args.drivers},
+                "episode_metrics": {LABELS[d]: [slim(e) for e in episodes[d]] for d in args.drivers},
+            }
+            if "planner" in args.drivers and len(args.drivers) > 1:
+                labelled = {LABELS[d]: episodes[d] for d in args.drivers}
+                entry["paired_speed"] = {
+                    "subject": LABELS["planner"],
+                    "against": report.paired_speeds(labelled, LABELS["planner"]),
                 }
-            )
+            results["scenarios"].append(entry)
     finally:
         if link:
             if link.refused:

@@ -3,6 +3,7 @@
 import math
 
 from judge import SSM_DRAC_LOGGED_ABOVE_MPS2, SSM_TTC_LOGGED_BELOW_S
+from paired import paired_difference
 
 LAYERS = ("nominal", "global_relaxation", "fallback", "watchdog_fallback")
 
@@ -64,6 +65,27 @@ def summarise(episodes):
     }
 
 
+def paired_speeds(episodes_by_driver, subject):
+    """Per-episode mean speed of `subject` minus each other driver's, paired by seed.
+
+    Unweighted by the episodes' lengths, unlike the summary's mean speed: a pair is one seed.
+    """
+    a = [e["mean_speed_mps"] for e in episodes_by_driver[subject]]
+    return {
+        driver: paired_difference(a, [e["mean_speed_mps"] for e in episodes])
+        for driver, episodes in episodes_by_driver.items()
+        if driver != subject
+    }
+
+
+def _paired_line(subject, driver, p):
+    line = f"Mean speed, {subject} minus {driver}, paired by seed: {p['mean']:+.2f} m/s"
+    if p["interval"] is not None:
+        low, high = p["interval"]
+        line += f" ({100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f})"
+    return line + f"; ahead in {p['ahead']} of {p['pairs']} episodes, behind in {p['behind']}.\n"
+
+
 def _fmt(x, digits=2, none="–"):
     return none if x is None else f"{x:.{digits}f}"
 
@@ -113,4 +135,8 @@ def markdown(results):
                 f"{_fmt(summary['min_pet_s'])} | {_fmt(summary['min_time_headway_s'])} | {_layers(summary)} | {rt} |"
             )
         out.append("")
+        paired = scenario.get("paired_speed")
+        if paired:
+            for driver, p in paired["against"].items():
+                out.append(_paired_line(paired["subject"], driver, p))
     return "\n".join(out)

@@ -4,6 +4,7 @@ use crate::config::PlannerConfig;
 use crate::idm::{idm_distance, sv_idm_distance};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::Kinematics;
+use crate::stopping::stopping_decel;
 use crate::types::{Beta, Situation, Threat};
 
 /// The fallback's choice: the new `beta` and the threat that decided it.
@@ -26,6 +27,8 @@ struct Candidate {
     closing: f64,
     /// How far inside its IDM distance it is (negative: outside).
     deficit: f64,
+    /// Braking that keeps the jam distance behind it (`stopping_decel`; 0 behind the ego).
+    stopping: f64,
 }
 
 impl Candidate {
@@ -49,8 +52,10 @@ impl Candidate {
 ///
 /// 1. **Front vehicle braking / too close**: an SV ahead in a lane the ego occupies
 ///    (`occupancy0`) that is inside its IDM distance (the distance includes the closing-speed
-///    term, so a fast approach counts): decelerate. The most critical by time to collision
-///    decides. While any front SV is inside its IDM distance the fallback never accelerates.
+///    term, so a fast approach counts), or that brakes so that staying behind it takes more
+///    than `ego.comfort_decel_mps2` (`stopping_decel`): decelerate, at least that hard. The
+///    most critical by time to collision decides. While any front SV is inside its IDM
+///    distance the fallback never accelerates.
 /// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
 ///    inside its IDM distance: accelerate.
 /// 3. **Lateral risk**: otherwise, an SV alongside in an adjacent lane: hold speed.
@@ -78,8 +83,12 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                     gap: dx - length,
                     closing: ego.v_mps - sv.v_mps,
                     deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
+                    stopping: stopping_decel(dx - length, config.idm.jam_distance_m, ego.v_mps, sv.v_mps, sv.a_mps2),
                 };
-                if c.deficit > 0.0 && front.as_ref().is_none_or(|f| c.more_critical(f)) {
+                // Inside its IDM distance, or braking so that staying behind it takes more
+                // than the ego's comfortable braking: the paper's "front vehicle braking".
+                let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
+                if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
                 }
             } else {
@@ -88,6 +97,7 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                     gap: -dx - length,
                     closing: sv.v_mps - ego.v_mps,
                     deficit: sv_idm_distance(&config.idm, ego.v_mps, sv.v_mps, false) - (-dx - length),
+                    stopping: 0.0,
                 };
                 let threat = c.closing > 0.0 || c.deficit > 0.0;
                 if threat && rear.as_ref().is_none_or(|r| c.more_critical(r)) {
@@ -106,11 +116,12 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
     if let Some(f) = front {
         // Constant deceleration that stops the closing within the gap beyond the jam distance.
         let room = (f.gap - config.idm.jam_distance_m).max(0.5);
-        let needed = if f.closing > 0.0 {
+        let closing = if f.closing > 0.0 {
             -f.closing * f.closing / (2.0 * room)
         } else {
             0.0
         };
+        let needed = closing.min(-f.stopping);
         return FallbackChoice {
             beta: -1,
             threat: Threat::Front,
@@ -212,6 +223,24 @@ mod tests {
         let f = choose(&c, &s, LaneSet::single(2));
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
         assert!((f.ttc_s - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_front_sv_braking_hard_beyond_its_idm_distance_brakes_as_hard_as_staying_behind_takes() {
+        let c = PlannerConfig::default();
+        // Gap 55 m at equal speed (outside the IDM distance of about 22 m), the leader braking
+        // at 6 m/s^2: stopping behind it within 53 m + its 33.3 m takes 400 / 172.7 = 2.32 m/s^2.
+        let braking = SvObservation::new(1, 160.0, 4.0, 20.0, -6.0);
+        let f = choose(&c, &situation(vec![braking]), LaneSet::single(2));
+        assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
+        assert!(
+            (f.needed_decel_mps2 + 400.0 / (2.0 * (53.0 + 400.0 / 12.0))).abs() < 1e-6,
+            "{f:?}"
+        );
+        // Slowing gently is not a threat: staying behind takes less than comfortable braking.
+        let gentle = SvObservation::new(1, 160.0, 4.0, 20.0, -0.5);
+        let f = choose(&c, &situation(vec![gentle]), LaneSet::single(2));
+        assert_eq!(f.threat, Threat::None, "{f:?}");
     }
 
     #[test]

@@ -32,6 +32,7 @@ mod plain_nominal;
 mod planner;
 mod problem;
 mod scenario;
+mod stopping;
 mod types;
 mod validate;
 

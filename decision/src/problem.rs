@@ -9,6 +9,7 @@ use crate::idm::{ego_as_follower, hard_margin, idm_distance, linearised_margins,
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::{rollout, EgoStart, Kinematics, Rollout};
 use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches_from, Branch};
+use crate::stopping::stopping_decel;
 use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situation, SvObservation};
 
 /// Safety data of one SV inside the perception window.
@@ -258,33 +259,40 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
     }
 }
 
-/// How far the margin rows of an SV already inside its margin by `violation` may still be
-/// violated after each step: the larger of the geometric decay (`idm.violation_decay` per
-/// step) and, for an SV ahead, the violation that remains on a reference rollout where the
-/// ego brakes at `idm.violation_recovery_mps2` as soon as its maneuver state allows (one
-/// state change per step: from `+1` it first cruises), against each predicted branch.
+/// How far the margin rows of an SV ahead in the ego's path (`ahead_in_path`: in a lane the ego
+/// occupies now, or predicted into one) may be violated after each step: the larger of the
+/// geometric decay of today's `violation` (`idm.violation_decay` per step) and the violation
+/// that remains on a reference rollout where the ego brakes at `idm.violation_recovery_mps2`
+/// as soon as its maneuver state allows (one state change per step: from `+1` it first
+/// cruises), against each predicted branch.
 ///
 /// The decay alone asks a deep violation (a cut-in 20 m ahead inside a 120 m margin) to
 /// shrink by a fifth of it per step, which only the strongest braking achieves, and none at
 /// all from an accelerating state: the problem is infeasible and the fallback answers.
-/// Recovering at a comfortable deceleration is what a driver does. The reference rollout
+/// Recovering at a comfortable deceleration is what a driver does. The same holds for a
+/// violation only predicted (a leader slowing a little raises its IDM distance by the
+/// closing-speed term): held strictly, it asked the strongest braking for a leader 1.3 s
+/// ahead slowing at 2.3 m/s^2. The reference never brakes less than staying behind a braking
+/// leader takes (`stopping::stopping_decel`, `needed_decel`): an allowance must not let the
+/// ego follow a leader's emergency braking comfortably into its bumper. The reference rollout
 /// meets these rows by construction (with one fixed acceleration per state, braking at that
 /// harder one meets them too, as the margin falls and the gap grows with braking); the floor
 /// rows keep the decay alone.
 fn violation_allowance(
     ctx: &Context,
-    ahead: bool,
     margin: &[Vec<f64>],
     slope: f64,
     branches: &[Branch],
     violation: f64,
+    needed_decel: f64,
+    ahead_in_path: bool,
 ) -> Vec<f64> {
     let config = ctx.config;
     let horizon = config.timing.horizon;
     let decay = config.idm.violation_decay;
     let by_decay = (1..=horizon as i32).map(|h| violation * decay.powi(h));
     let recovery = config.idm.violation_recovery_mps2;
-    if !(ahead && decay > 0.0 && recovery > 0.0 && violation > 0.0) {
+    if !(ahead_in_path && decay > 0.0 && recovery > 0.0) {
         return by_decay.collect();
     }
     let kin = &ctx.kin;
@@ -296,7 +304,7 @@ fn violation_allowance(
     for h in 0..horizon {
         beta = (beta - 1).max(-1);
         let lowest = kin.bounds[(beta + 1) as usize].0;
-        let u = (-recovery).max(lowest).max(-v / kin.dt);
+        let u = (-recovery.max(needed_decel)).max(lowest).max(-v / kin.dt);
         (x, v) = kin.step_with(x, v, u);
         let worst = branches
             .iter()
@@ -399,7 +407,8 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
             .iter()
             .any(|b| b.occupancy.iter().any(|o| o.intersects(occupancy0)));
     let gap_now = sign * (sv.x_m - x0) - length;
-    let (violation_now, floor_violation_now) = if shares_lane && !exempt_in_own_lanes {
+    let in_path = shares_lane && !exempt_in_own_lanes;
+    let (violation_now, floor_violation_now) = if in_path {
         (
             (hard[0].max(floor[0]) - gap_now).max(0.0),
             (floor[0] - gap_now).max(0.0),
@@ -407,7 +416,20 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     } else {
         (0.0, 0.0)
     };
-    let allowance = violation_allowance(ctx, ahead, &margin, slope, &branches, violation_now);
+    let needed_decel = if ahead {
+        stopping_decel(gap_now, config.idm.jam_distance_m, v0, sv.v_mps, sv.a_mps2)
+    } else {
+        0.0
+    };
+    let allowance = violation_allowance(
+        ctx,
+        &margin,
+        slope,
+        &branches,
+        violation_now,
+        needed_decel,
+        ahead && in_path,
+    );
     let decay = config.idm.violation_decay;
     let floor_allowance: Vec<f64> = (1..=horizon as i32)
         .map(|h| floor_violation_now * decay.powi(h))

@@ -210,10 +210,11 @@ fn bridge_unit_tests_pass() {
         ],
     );
     assert_eq!(code, 0, "the bridge's Python unit tests failed\n{stdout}\n{stderr}");
-    // Not an empty discovery: the mapping and the judge tests ran.
+    // Not an empty discovery: the mapping, judge and paired-comparison tests ran.
     for name in [
         "test_lane_centres_agree_with_the_protocol",
         "test_a_rear_end_collision_is_counted_once_everywhere",
+        "test_the_interval_covers_the_true_difference_as_often_as_it_says",
     ] {
         assert!(stderr.contains(name), "{name} did not run\n{stderr}");
     }

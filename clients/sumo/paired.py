@@ -1,0 +1,129 @@
+"""Paired comparison of two drivers over the same seeds.
+
+Episode e of every driver runs the same seed, so the same traffic: the per-episode difference
+removes most of what the traffic itself does to a driver's speed, and its mean comes with a
+confidence interval. Twenty episodes of one scenario differ by a lane change into a lane that
+turns out slow: whether "at least as fast" holds is a question of that interval, not only of
+the sign of the difference of two means.
+
+    python3 clients/sumo/paired.py RESULTS.json [--baseline OTHER.json]
+
+prints, for every scenario of RESULTS (a `hmdp_sumo.py --json` file), the planner's mean speed
+against every other driver of it, and of OTHER's run of the same scenario and seeds (a planner
+variant measured without re-running the baselines).
+"""
+
+import argparse
+import functools
+import json
+import math
+import sys
+
+# Student's t distribution, by its density: enough for the interval of a mean of 2..1000
+# differences without scipy (the bridge needs traci and sumolib only).
+_SIMPSON_INTERVALS = 4000
+
+
+def _t_density(t, df):
+    log_norm = math.lgamma((df + 1) / 2) - math.lgamma(df / 2) - 0.5 * math.log(df * math.pi)
+    return math.exp(log_norm - (df + 1) / 2 * math.log1p(t * t / df))
+
+
+def t_cdf(t, df):
+    """P(T <= t) for Student's t with df degrees of freedom (Simpson's rule from 0)."""
+    if t < 0:
+        return 1.0 - t_cdf(-t, df)
+    n = _SIMPSON_INTERVALS
+    h = t / n
+    s = _t_density(0.0, df) + _t_density(t, df)
+    s += sum((4 if i % 2 else 2) * _t_density(i * h, df) for i in range(1, n))
+    return 0.5 + s * h / 3
+
+
+@functools.lru_cache(maxsize=None)
+def t_quantile(p, df):
+    """The t with P(T <= t) = p, 0.5 <= p < 1 (bisection on `t_cdf`)."""
+    if not 0.5 <= p < 1.0:
+        raise ValueError("p must be in [0.5, 1)")
+    low, high = 0.0, 1.0
+    while t_cdf(high, df) < p:
+        high *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        if t_cdf(mid, df) < p:
+            low = mid
+        else:
+            high = mid
+    return 0.5 * (low + high)
+
+
+def paired_difference(a, b, confidence=0.95):
+    """Mean of a[i] - b[i] with its two-sided t interval, and how often a was ahead.
+
+    `a` and `b` are per-episode values of the same seeds, in seed order. The interval is
+    None for fewer than two pairs.
+    """
+    if len(a) != len(b):
+        raise ValueError(f"{len(a)} against {len(b)} episodes: not paired")
+    if not a:
+        raise ValueError("no episodes")
+    d = [x - y for x, y in zip(a, b)]
+    n = len(d)
+    mean = sum(d) / n
+    interval = None
+    if n >= 2:
+        sd = math.sqrt(sum((x - mean) ** 2 for x in d) / (n - 1))
+        half = t_quantile(0.5 + confidence / 2, n - 1) * sd / math.sqrt(n)
+        interval = (mean - half, mean + half)
+    return {
+        "pairs": n,
+        "mean": mean,
+        "interval": interval,
+        "confidence": confidence,
+        "ahead": sum(1 for x in d if x > 0),
+        "behind": sum(1 for x in d if x < 0),
+    }
+
+
+PLANNER = "planner (HMDP-MPC)"
+
+
+def _key(scenario):
+    s = scenario["scenario"]
+    return (s["name"], s["seed"], scenario["episodes"])
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description="The planner against the baselines, paired by seed.")
+    parser.add_argument("results")
+    parser.add_argument("--baseline", help="another run's JSON with the baselines of the same scenarios and seeds")
+    args = parser.parse_args(argv)
+    with open(args.results) as f:
+        results = json.load(f)
+    others = {}
+    if args.baseline:
+        with open(args.baseline) as f:
+            others = {_key(s): s for s in json.load(f)["scenarios"]}
+    for scenario in results["scenarios"]:
+        episodes = dict(scenario["episode_metrics"])
+        if PLANNER not in episodes:
+            print(f"{scenario['scenario']['name']}: no planner episodes", file=sys.stderr)
+            return 1
+        for driver, eps in others.get(_key(scenario), {}).get("episode_metrics", {}).items():
+            episodes.setdefault(driver, eps)
+        speeds = [e["mean_speed_mps"] for e in episodes[PLANNER]]
+        for driver, eps in episodes.items():
+            if driver == PLANNER:
+                continue
+            p = paired_difference(speeds, [e["mean_speed_mps"] for e in eps])
+            low, high = p["interval"] or (float("nan"), float("nan"))
+            print(
+                f"{scenario['scenario']['name']} (seeds {scenario['scenario']['seed']}..): planner minus {driver} "
+                f"{p['mean']:+.3f} m/s, {100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f}, "
+                f"ahead in {p['ahead']} of {p['pairs']}, behind in {p['behind']}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,51 @@
+"""The paired comparison: Student's t against printed tables, an example by hand, and the
+interval's coverage on seeded normal samples.
+
+    python3 -m unittest discover -s clients/sumo -p 'test_*.py'
+"""
+
+import random
+import unittest
+
+from paired import paired_difference, t_quantile
+
+
+class StudentT(unittest.TestCase):
+    def test_quantiles_match_the_printed_table(self):
+        # Two-sided 95 % (p = 0.975) and one-sided 95 % critical values, as tabulated.
+        for p, df, table in [(0.975, 1, 12.706), (0.975, 4, 2.776), (0.975, 9, 2.262), (0.975, 19, 2.093), (0.95, 4, 2.132), (0.995, 30, 2.750)]:
+            self.assertAlmostEqual(t_quantile(p, df), table, delta=1e-3, msg=f"p {p}, df {df}")
+
+    def test_large_df_approaches_the_normal_quantile(self):
+        self.assertAlmostEqual(t_quantile(0.975, 1000), 1.962, delta=1e-3)
+
+
+class PairedDifference(unittest.TestCase):
+    def test_an_example_by_hand(self):
+        # d = 1, 0, -1, 2: mean 0.5, s = sqrt(5 / 3), half width t(0.975, 3) s / 2 = 3.182 * 1.291 / 2.
+        p = paired_difference([30.0, 31.0, 29.0, 32.0], [29.0, 31.0, 30.0, 30.0])
+        self.assertAlmostEqual(p["mean"], 0.5)
+        low, high = p["interval"]
+        self.assertAlmostEqual(low, 0.5 - 2.0544, delta=1e-3)
+        self.assertAlmostEqual(high, 0.5 + 2.0544, delta=1e-3)
+        self.assertEqual((p["pairs"], p["ahead"], p["behind"]), (4, 2, 1))
+
+    def test_one_pair_has_no_interval_and_unequal_runs_are_refused(self):
+        self.assertIsNone(paired_difference([1.0], [0.5])["interval"])
+        with self.assertRaises(ValueError):
+            paired_difference([1.0, 2.0], [1.0])
+
+    def test_the_interval_covers_the_true_difference_as_often_as_it_says(self):
+        # Five pairs: a normal quantile (1.96 instead of 2.776) would cover about 88 %.
+        rng = random.Random(2026)
+        trials, covered = 4000, 0
+        for _ in range(trials):
+            b = [rng.gauss(29.0, 1.0) for _ in range(5)]
+            a = [x + 0.3 + rng.gauss(0.0, 0.5) for x in b]
+            low, high = paired_difference(a, b)["interval"]
+            covered += low <= 0.3 <= high
+        self.assertAlmostEqual(covered / trials, 0.95, delta=0.012)
+
+
+if __name__ == "__main__":
+    unittest.main()
