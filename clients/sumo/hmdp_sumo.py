@@ -22,11 +22,12 @@ import tempfile
 import time
 
 import control
+import paired
 import planner_link
 import report
 import scenario as scenarios
 
-LABELS = {"planner": "planner (HMDP-MPC)", "krauss": "SUMO Krauss + LC2013", "idm": "SUMO IDM + LC2013"}
+LABELS = {"planner": paired.PLANNER, "krauss": "SUMO Krauss + LC2013", "idm": "SUMO IDM + LC2013"}
 
 
 def parse_args(argv):

@@ -85,6 +85,16 @@ def paired_difference(a, b, confidence=0.95):
     }
 
 
+def describe(subject, driver, p):
+    """One line of the markdown report and of the command."""
+    line = f"Mean speed, {subject} minus {driver}, paired by seed: {p['mean']:+.2f} m/s"
+    if p["interval"] is not None:
+        low, high = p["interval"]
+        line += f" ({100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f})"
+    return line + f"; ahead in {p['ahead']} of {p['pairs']} episodes, behind in {p['behind']}."
+
+
+# The planner's label in the results (hmdp_sumo.py's LABELS).
 PLANNER = "planner (HMDP-MPC)"
 
 
@@ -116,12 +126,8 @@ def main(argv=None):
             if driver == PLANNER:
                 continue
             p = paired_difference(speeds, [e["mean_speed_mps"] for e in eps])
-            low, high = p["interval"] or (float("nan"), float("nan"))
-            print(
-                f"{scenario['scenario']['name']} (seeds {scenario['scenario']['seed']}..): planner minus {driver} "
-                f"{p['mean']:+.3f} m/s, {100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f}, "
-                f"ahead in {p['ahead']} of {p['pairs']}, behind in {p['behind']}"
-            )
+            where = f"{scenario['scenario']['name']}, seeds {scenario['scenario']['seed']}..: "
+            print(where + describe(PLANNER, driver, p))
     return 0
 
 

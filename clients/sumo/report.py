@@ -3,7 +3,7 @@
 import math
 
 from judge import SSM_DRAC_LOGGED_ABOVE_MPS2, SSM_TTC_LOGGED_BELOW_S
-from paired import paired_difference
+from paired import describe, paired_difference
 
 LAYERS = ("nominal", "global_relaxation", "fallback", "watchdog_fallback")
 
@@ -78,14 +78,6 @@ def paired_speeds(episodes_by_driver, subject):
     }
 
 
-def _paired_line(subject, driver, p):
-    line = f"Mean speed, {subject} minus {driver}, paired by seed: {p['mean']:+.2f} m/s"
-    if p["interval"] is not None:
-        low, high = p["interval"]
-        line += f" ({100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f})"
-    return line + f"; ahead in {p['ahead']} of {p['pairs']} episodes, behind in {p['behind']}.\n"
-
-
 def _fmt(x, digits=2, none="–"):
     return none if x is None else f"{x:.{digits}f}"
 
@@ -138,5 +130,5 @@ def markdown(results):
         paired = scenario.get("paired_speed")
         if paired:
             for driver, p in paired["against"].items():
-                out.append(_paired_line(paired["subject"], driver, p))
+                out.append(describe(paired["subject"], driver, p) + "\n")
     return "\n".join(out)

@@ -114,14 +114,9 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
         }
     }
     if let Some(f) = front {
-        // Constant deceleration that stops the closing within the gap beyond the jam distance.
-        let room = (f.gap - config.idm.jam_distance_m).max(0.5);
-        let closing = if f.closing > 0.0 {
-            -f.closing * f.closing / (2.0 * room)
-        } else {
-            0.0
-        };
-        let needed = closing.min(-f.stopping);
+        // `stopping_decel` with a leader not braking is the deceleration that stops the
+        // closing within the gap beyond the jam distance.
+        let needed = -f.stopping;
         return FallbackChoice {
             beta: -1,
             threat: Threat::Front,

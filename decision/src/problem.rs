@@ -416,7 +416,8 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     } else {
         (0.0, 0.0)
     };
-    let needed_decel = if ahead {
+    // Only the allowance of an SV ahead in the path uses it.
+    let needed_decel = if ahead && in_path {
         stopping_decel(gap_now, config.idm.jam_distance_m, v0, sv.v_mps, sv.a_mps2)
     } else {
         0.0

@@ -8,15 +8,17 @@
 
 /// Least constant deceleration (m/s^2, >= 0) of an ego at `v_ego` keeping at least `jam_m`
 /// behind a leader `gap_m` ahead at `v_leader` accelerating at `a_leader` (a negative value
-/// brakes it to a stop; otherwise it holds its speed). Infinite when no braking does (the gap
-/// is already below the jam distance and closing).
+/// brakes it to a stop; otherwise it holds its speed). A leader already closer than `jam_m`
+/// (a cut-in at the bumper) is to come no closer than it is. Infinite when no braking does
+/// that (closer than `jam_m` and closing).
 pub fn stopping_decel(gap_m: f64, jam_m: f64, v_ego: f64, v_leader: f64, a_leader: f64) -> f64 {
     let (v_e, v_l) = (v_ego.max(0.0), v_leader.max(0.0));
     let b_l = (-a_leader).max(0.0);
+    let jam_m = jam_m.min(gap_m);
     if min_gap(gap_m, v_e, v_l, b_l, 0.0) >= jam_m {
         return 0.0;
     }
-    if gap_m <= jam_m {
+    if gap_m <= jam_m && v_e > v_l {
         return f64::INFINITY;
     }
     // The least gap grows with the ego's deceleration: bisection up to one that stops the
@@ -134,9 +136,11 @@ mod tests {
     }
 
     #[test]
-    fn nothing_is_needed_behind_a_faster_or_distant_leader_and_too_late_is_infinite() {
+    fn nothing_is_needed_behind_a_faster_or_distant_leader_and_closing_inside_the_jam_distance_is_infinite() {
         assert_eq!(stopping_decel(30.0, 2.0, 25.0, 30.0, 0.0), 0.0);
         assert_eq!(stopping_decel(1.0, 2.0, 25.0, 20.0, 0.0), f64::INFINITY);
+        // Inside the jam distance and moving away: nothing to brake for.
+        assert_eq!(stopping_decel(1.0, 2.0, 20.0, 25.0, 0.0), 0.0);
         // A leader braking to a stop always asks for some braking of a moving ego.
         assert!(stopping_decel(200.0, 2.0, 25.0, 25.0, -1.0) > 0.0);
     }
