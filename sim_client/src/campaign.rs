@@ -10,7 +10,7 @@ use decision::PlannerConfig;
 use serde::{Deserialize, Serialize};
 use traffic::{Scenario, SimParams, TrafficConfig};
 
-use crate::episode::{run_episode, Driver, EpisodeSpec};
+use crate::episode::{run_episode, Driver, EpisodeSpec, HardBrakingDecision};
 use crate::error::{Result, SimClientError};
 use crate::link::{PlannerLink, Transport};
 use crate::metrics::{clean, CollisionSplit, EpisodeMetrics, LayerCounts, SolveTimeStats};
@@ -197,6 +197,8 @@ pub struct CampaignSettings {
     pub transport: Transport,
     /// Simulator parameters.
     pub params: SimParams,
+    /// Keep the planner decisions that brake hard ([`CampaignResults::hard_braking`]).
+    pub trace_hard_braking: bool,
 }
 
 impl CampaignSettings {
@@ -212,6 +214,7 @@ impl CampaignSettings {
             paper_literal: None,
             transport: Transport::InProcess,
             params: SimParams::default(),
+            trace_hard_braking: false,
         }
     }
 
@@ -262,6 +265,7 @@ pub fn trial_spec(entry: &CampaignEntry, trial: u32, settings: &CampaignSettings
         max_svs: settings.planner.perception.max_svs,
         record_trajectory: false,
         audit_nominal: None,
+        trace_hard_braking: settings.trace_hard_braking,
     })
 }
 
@@ -278,6 +282,24 @@ pub struct TrialOutcome {
     pub metrics: EpisodeMetrics,
     /// Planner solve times (µs).
     pub solve_us: Vec<u64>,
+    /// Its hard-braking decisions (with [`CampaignSettings::trace_hard_braking`]).
+    pub hard_braking: Vec<HardBrakingDecision>,
+}
+
+/// A hard-braking decision of a campaign, with the trial it belongs to.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TracedHardBraking {
+    /// The driver (a planner preset).
+    pub driver: DriverKind,
+    /// Configuration id.
+    pub config_id: u32,
+    /// Trial index.
+    pub trial: u32,
+    /// The trial's seed ([`trial_seed`]).
+    pub seed: u64,
+    /// The decision and its situation.
+    #[serde(flatten)]
+    pub decision: HardBrakingDecision,
 }
 
 /// Aggregate over a set of episodes (one configuration and driver, or overall).
@@ -352,6 +374,10 @@ pub struct CampaignResults {
     pub wall_time_s: f64,
     /// Worker threads used.
     pub threads: usize,
+    /// The planner decisions that braked hard, in trial order (with
+    /// [`CampaignSettings::trace_hard_braking`]; not part of the results files).
+    #[serde(skip)]
+    pub hard_braking: Vec<TracedHardBraking>,
 }
 
 impl CampaignResults {
@@ -489,6 +515,7 @@ impl Worker<'_> {
             driver: item.driver,
             metrics: episode.metrics(),
             solve_us: episode.solve_times_us(),
+            hard_braking: episode.hard_braking,
         })
     }
 }
@@ -538,6 +565,18 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
         .iter()
         .map(|&d| aggregate(None, d, outcomes.iter().filter(|o| o.driver == d), settings.params.dt))
         .collect();
+    let hard_braking = outcomes
+        .iter()
+        .flat_map(|o| {
+            o.hard_braking.iter().map(|d| TracedHardBraking {
+                driver: o.driver,
+                config_id: o.config_id,
+                trial: o.trial,
+                seed: trial_seed(settings.seed, o.config_id, o.trial),
+                decision: d.clone(),
+            })
+        })
+        .collect();
     Ok(CampaignResults {
         seed: settings.seed,
         duration_s: settings.duration_s,
@@ -547,5 +586,6 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
         overall,
         wall_time_s: started.elapsed().as_secs_f64(),
         threads,
+        hard_braking,
     })
 }

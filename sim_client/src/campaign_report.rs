@@ -1,11 +1,11 @@
-//! The campaign's files: results.csv, results.md and results.json.
+//! The campaign's files: results.csv, results.md and results.json (and hard-braking.jsonl).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::campaign::{ratio, CampaignResults, DriverKind, GroupResult};
+use crate::campaign::{ratio, CampaignResults, DriverKind, GroupResult, TracedHardBraking};
 use crate::error::Result;
 use crate::paper::{paper_row_for, PaperRow, PAPER_OVERALL};
 use crate::report::{create_dir, csv_bytes, json_bytes, pct, ttc_cell, write};
@@ -332,9 +332,46 @@ fn nominal_table(s: &mut String, groups: &[GroupResult]) {
 pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
     let dir = out.join("campaign");
     create_dir(&dir)?;
-    Ok(vec![
+    let mut files = vec![
         write(dir.join("results.json"), &json_bytes(r)?)?,
         write(dir.join("results.csv"), &campaign_csv(r)?)?,
         write(dir.join("results.md"), campaign_markdown(r).as_bytes())?,
-    ])
+    ];
+    if !r.hard_braking.is_empty() {
+        files.push(write(dir.join("hard-braking.jsonl"), &hard_braking_jsonl(r)?)?);
+    }
+    Ok(files)
+}
+
+/// One line of hard-braking.jsonl: `where` and `accel` as `explain_decision` reads them.
+#[derive(Serialize)]
+struct HardBrakingLine<'a> {
+    #[serde(rename = "where")]
+    place: String,
+    accel: f64,
+    #[serde(flatten)]
+    traced: &'a TracedHardBraking,
+}
+
+/// hard-braking.jsonl: every traced hard-braking decision, one JSON object per line, in the
+/// form `decision`'s `explain_decision` example reads (`where`, `accel`, `situation`), with
+/// the driver, configuration, trial, trial seed, time and layer.
+pub fn hard_braking_jsonl(r: &CampaignResults) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    for t in &r.hard_braking {
+        let line = HardBrakingLine {
+            place: format!(
+                "{} config {} trial {} t {:.1}",
+                t.driver.name(),
+                t.config_id,
+                t.trial,
+                t.decision.time_s
+            ),
+            accel: t.decision.accel_mps2,
+            traced: t,
+        };
+        serde_json::to_writer(&mut out, &line)?;
+        out.push(b'\n');
+    }
+    Ok(out)
 }

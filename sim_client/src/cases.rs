@@ -26,6 +26,7 @@ pub fn case1_spec(seed: u64, max_svs: usize) -> EpisodeSpec {
         max_svs,
         record_trajectory: true,
         audit_nominal: None,
+        trace_hard_braking: false,
     }
 }
 
@@ -58,6 +59,7 @@ pub fn run_case_observed(
 ) -> Result<CaseRun> {
     let spec = EpisodeSpec {
         audit_nominal: Some(config.clone()),
+        trace_hard_braking: false,
         ..case1_spec(seed, config.perception.max_svs)
     };
     let mut link = transport.connect(config.clone())?;

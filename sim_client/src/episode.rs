@@ -12,7 +12,9 @@ use traffic::{EgoCommand, EgoMode, Perception, Scenario, SimParams, World};
 use crate::error::{Result, SimClientError};
 use crate::link::{LinkError, PlannerLink};
 use crate::metrics::{clean, EpisodeMetrics};
-use crate::safety::{classify_ego_collision, Body, EgoCollisionKind, SafetyAccumulator, SafetySummary};
+use crate::safety::{
+    classify_ego_collision, Body, EgoCollisionKind, SafetyAccumulator, SafetySummary, HARD_BRAKING_MPS2,
+};
 
 /// `|a|` below this counts as cruising when the IDM + MOBIL ego's longitudinal mode is
 /// read off its acceleration (same dead band the planner uses for SVs), m/s^2.
@@ -55,6 +57,23 @@ pub struct EpisodeSpec {
     /// driver's): no violation allowance, band slack within `d_HS`
     /// ([`decision::classify_nominal`]), so that the nominal share compares with the paper's.
     pub audit_nominal: Option<decision::PlannerConfig>,
+    /// Keep every planner decision that brakes hard, with its situation
+    /// ([`Episode::hard_braking`]).
+    pub trace_hard_braking: bool,
+}
+
+/// A planner decision whose first step brakes at or below [`HARD_BRAKING_MPS2`], with the
+/// situation it answered: what `decision`'s `explain_decision` example reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HardBrakingDecision {
+    /// Simulation time (s).
+    pub time_s: f64,
+    /// The answer's first-step acceleration, m/s^2.
+    pub accel_mps2: f64,
+    /// The layer that answered.
+    pub layer: Layer,
+    /// What the planner was asked.
+    pub situation: decision::Situation,
 }
 
 /// One decision instant.
@@ -174,6 +193,8 @@ pub struct Episode {
     pub ego_speed_sum: f64,
     /// Surrogate safety measures over every step.
     pub safety: SafetySummary,
+    /// The hard-braking decisions (with [`EpisodeSpec::trace_hard_braking`]).
+    pub hard_braking: Vec<HardBrakingDecision>,
 }
 
 impl Episode {
@@ -363,6 +384,7 @@ pub fn run_episode_observed(
         simulated_s: 0.0,
         ego_speed_sum: 0.0,
         safety: SafetySummary::default(),
+        hard_braking: Vec::new(),
     };
     observer.after_step(&mut world)?;
     let mut safety = SafetyAccumulator::for_world(&world);
@@ -392,6 +414,14 @@ pub fn run_episode_observed(
                         },
                         decision.setpoint.accel_mps2,
                     )?;
+                    if spec.trace_hard_braking && decision.setpoint.accel_mps2 <= HARD_BRAKING_MPS2 {
+                        episode.hard_braking.push(HardBrakingDecision {
+                            time_s: clean(perception.time),
+                            accel_mps2: decision.setpoint.accel_mps2,
+                            layer: decision.layer,
+                            situation: request.to_situation(),
+                        });
+                    }
                     let corrective_sv_ids = decision.memory.corrective.iter().map(|c| c.sv_id).collect();
                     let nominal_class = match &spec.audit_nominal {
                         Some(config) if decision.layer == Layer::Nominal => {

@@ -195,6 +195,7 @@ pub fn replay_log(
         },
         record_trajectory: true,
         audit_nominal: None,
+        trace_hard_braking: false,
     };
     let mut follower = Follower {
         by_step: log.steps.iter().map(|s| (s.step - first.step, s)).collect(),

@@ -254,6 +254,7 @@ mod tests {
             simulated_s: 2.4,
             ego_speed_sum: 24.0 * 12.0,
             safety: SafetySummary::default(),
+            hard_braking: Vec::new(),
         };
         let m = EpisodeMetrics::from_episode(&e);
         assert_eq!(m.decisions, 6);

@@ -105,6 +105,11 @@ pub struct CampaignArgs {
     /// Trials recorded per configuration and driver (with `--record`).
     #[arg(long, default_value_t = 1, requires = "record")]
     record_trials: u32,
+    /// Also write `campaign/hard-braking.jsonl`: every planner decision whose first step
+    /// brakes at 2.5 m/s^2 or harder, with its situation (input of `decision`'s
+    /// `explain_decision` example; docs/braking-leader.md)
+    #[arg(long)]
+    trace_hard_braking: bool,
 }
 
 pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
@@ -118,6 +123,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         paper,
         record,
         record_trials,
+        trace_hard_braking,
     } = args;
     let (scale, seed, baselines, threads) = (*scale, *seed, *baselines, *threads);
     if common.transport != TransportKind::Inproc && baselines {
@@ -142,6 +148,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         None
     };
     settings.transport = transport;
+    settings.trace_hard_braking = *trace_hard_braking;
     let bar = if std::io::stderr().is_terminal() {
         ProgressBar::new(settings.episode_count() as u64)
     } else {

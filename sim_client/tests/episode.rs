@@ -18,6 +18,7 @@ fn random_spec(seed: u64, duration_s: f64) -> EpisodeSpec {
         max_svs: PlannerConfig::default().perception.max_svs,
         record_trajectory: false,
         audit_nominal: None,
+        trace_hard_braking: false,
     }
 }
 
@@ -201,6 +202,7 @@ fn spec_with(ego_lane: u8, svs: Vec<traffic::VehicleInit>) -> EpisodeSpec {
         max_svs: 16,
         record_trajectory: true,
         audit_nominal: None,
+        trace_hard_braking: false,
     }
 }
 
