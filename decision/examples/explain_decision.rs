@@ -4,7 +4,8 @@
 //!
 //! `cargo run --release -p decision --example explain_decision -- SITUATIONS.jsonl [CONFIG.toml]`
 //! with one JSON object per line: `{"where": "...", "accel": <the answer then>, "situation":
-//! <a Situation>}` (`clients/sumo/trace_situations.py` writes them from SUMO's traces).
+//! <a Situation>}` (`clients/sumo/trace_situations.py` writes them from SUMO's traces,
+//! `sim_client campaign --trace-hard-braking` from a campaign's).
 use decision::{Planner, PlannerConfig, Situation};
 
 /// The least change of the first step's acceleration that is reported, m/s^2.

@@ -58,7 +58,7 @@ fn the_ego_stops_behind_a_leader_braking_hard_to_a_stop() {
     // The ego's strongest planned braking is 6 m/s^2: a leader braking that hard from 30 m/s
     // is survivable from every headway the planner follows at and from closer.
     for (v0, headway) in [(30.0, 1.9), (30.0, 1.2), (30.0, 0.9), (30.0, 0.6), (20.0, 0.8)] {
-        for brake in [4.0, 6.0] {
+        for brake in [3.0, 4.0, 6.0] {
             let (least, layers) = least_gap(v0, headway, brake);
             assert!(
                 least >= jam - 0.1,

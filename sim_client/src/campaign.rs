@@ -197,7 +197,8 @@ pub struct CampaignSettings {
     pub transport: Transport,
     /// Simulator parameters.
     pub params: SimParams,
-    /// Keep the planner decisions that brake hard ([`CampaignResults::hard_braking`]).
+    /// Keep the decisions of the "planner" driver that brake hard
+    /// ([`CampaignResults::hard_braking`]); the baselines are not traced.
     pub trace_hard_braking: bool,
 }
 
@@ -265,7 +266,7 @@ pub fn trial_spec(entry: &CampaignEntry, trial: u32, settings: &CampaignSettings
         max_svs: settings.planner.perception.max_svs,
         record_trajectory: false,
         audit_nominal: None,
-        trace_hard_braking: settings.trace_hard_braking,
+        trace_hard_braking: false,
     })
 }
 
@@ -287,7 +288,7 @@ pub struct TrialOutcome {
 }
 
 /// A hard-braking decision of a campaign, with the trial it belongs to.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TracedHardBraking {
     /// The driver (a planner preset).
     pub driver: DriverKind,
@@ -295,7 +296,7 @@ pub struct TracedHardBraking {
     pub config_id: u32,
     /// Trial index.
     pub trial: u32,
-    /// The trial's seed ([`trial_seed`]).
+    /// The trial's scenario seed ([`trial_seed`]; the simulator's is derived from it).
     pub seed: u64,
     /// The decision and its situation.
     #[serde(flatten)]
@@ -374,10 +375,11 @@ pub struct CampaignResults {
     pub wall_time_s: f64,
     /// Worker threads used.
     pub threads: usize,
-    /// The planner decisions that braked hard, in trial order (with
-    /// [`CampaignSettings::trace_hard_braking`]; not part of the results files).
+    /// The "planner" driver's decisions that braked hard, in (configuration, trial) order
+    /// whatever the thread count; `None` unless [`CampaignSettings::trace_hard_braking`]. Not
+    /// part of results.json (`hard-braking.jsonl`).
     #[serde(skip)]
-    pub hard_braking: Vec<TracedHardBraking>,
+    pub hard_braking: Option<Vec<TracedHardBraking>>,
 }
 
 impl CampaignResults {
@@ -498,6 +500,9 @@ impl Worker<'_> {
             None => run_episode(&spec, Driver::IdmMobil)?,
             Some(config) => {
                 spec.audit_nominal = Some(config.clone());
+                // The baselines run other configurations: their situations would be explained
+                // with the wrong planner.
+                spec.trace_hard_braking = self.settings.trace_hard_braking && item.driver == DriverKind::Planner;
                 let pos = match self.links.iter().position(|(d, _)| *d == item.driver) {
                     Some(p) => p,
                     None => {
@@ -565,18 +570,20 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
         .iter()
         .map(|&d| aggregate(None, d, outcomes.iter().filter(|o| o.driver == d), settings.params.dt))
         .collect();
-    let hard_braking = outcomes
-        .iter()
-        .flat_map(|o| {
-            o.hard_braking.iter().map(|d| TracedHardBraking {
-                driver: o.driver,
-                config_id: o.config_id,
-                trial: o.trial,
-                seed: trial_seed(settings.seed, o.config_id, o.trial),
-                decision: d.clone(),
+    let hard_braking = settings.trace_hard_braking.then(|| {
+        outcomes
+            .iter()
+            .flat_map(|o| {
+                o.hard_braking.iter().map(|d| TracedHardBraking {
+                    driver: o.driver,
+                    config_id: o.config_id,
+                    trial: o.trial,
+                    seed: trial_seed(settings.seed, o.config_id, o.trial),
+                    decision: d.clone(),
+                })
             })
-        })
-        .collect();
+            .collect()
+    });
     Ok(CampaignResults {
         seed: settings.seed,
         duration_s: settings.duration_s,

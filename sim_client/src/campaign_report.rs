@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::campaign::{ratio, CampaignResults, DriverKind, GroupResult, TracedHardBraking};
-use crate::error::Result;
+use crate::error::{Result, SimClientError};
 use crate::paper::{paper_row_for, PaperRow, PAPER_OVERALL};
 use crate::report::{create_dir, csv_bytes, json_bytes, pct, ttc_cell, write};
 
@@ -337,8 +337,12 @@ pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
         write(dir.join("results.csv"), &campaign_csv(r)?)?,
         write(dir.join("results.md"), campaign_markdown(r).as_bytes())?,
     ];
-    if !r.hard_braking.is_empty() {
-        files.push(write(dir.join("hard-braking.jsonl"), &hard_braking_jsonl(r)?)?);
+    let trace = dir.join(HARD_BRAKING_FILE);
+    match &r.hard_braking {
+        Some(traced) => files.push(write(trace, &hard_braking_jsonl(traced)?)?),
+        // A file of an earlier run would pass for this one's.
+        None if trace.exists() => std::fs::remove_file(&trace).map_err(|e| SimClientError::io(&trace, e))?,
+        None => {}
     }
     Ok(files)
 }
@@ -353,12 +357,15 @@ struct HardBrakingLine<'a> {
     traced: &'a TracedHardBraking,
 }
 
+/// Where a traced campaign writes its hard-braking decisions, in its `campaign/` directory.
+pub const HARD_BRAKING_FILE: &str = "hard-braking.jsonl";
+
 /// hard-braking.jsonl: every traced hard-braking decision, one JSON object per line, in the
 /// form `decision`'s `explain_decision` example reads (`where`, `accel`, `situation`), with
 /// the driver, configuration, trial, trial seed, time and layer.
-pub fn hard_braking_jsonl(r: &CampaignResults) -> Result<Vec<u8>> {
+pub fn hard_braking_jsonl(traced: &[TracedHardBraking]) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    for t in &r.hard_braking {
+    for t in traced {
         let line = HardBrakingLine {
             place: format!(
                 "{} config {} trial {} t {:.1}",

@@ -59,7 +59,6 @@ pub fn run_case_observed(
 ) -> Result<CaseRun> {
     let spec = EpisodeSpec {
         audit_nominal: Some(config.clone()),
-        trace_hard_braking: false,
         ..case1_spec(seed, config.perception.max_svs)
     };
     let mut link = transport.connect(config.clone())?;

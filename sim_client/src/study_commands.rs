@@ -105,9 +105,10 @@ pub struct CampaignArgs {
     /// Trials recorded per configuration and driver (with `--record`).
     #[arg(long, default_value_t = 1, requires = "record")]
     record_trials: u32,
-    /// Also write `campaign/hard-braking.jsonl`: every planner decision whose first step
-    /// brakes at 2.5 m/s^2 or harder, with its situation (input of `decision`'s
-    /// `explain_decision` example; docs/braking-leader.md)
+    /// Also write `campaign/hard-braking.jsonl`: every decision of the "planner" driver whose
+    /// first step brakes at 2.5 m/s^2 or harder, with its situation: the input of `decision`'s
+    /// `explain_decision` example (with this run's `--planner-config`, if any, as its second
+    /// argument). See docs/safety-metrics.md.
     #[arg(long)]
     trace_hard_braking: bool,
 }
