@@ -10,10 +10,13 @@
 //! `SHOW_FALLBACK` lists SVs (80 m), `DUMP_FALLBACK=DIR` writes their situations as JSON for
 //! `cargo run -p decision --example explain_fallback`; `SHOW_COUNTS=1` the beta
 //! switches per trial; `SHOW_SAFETY=1` the trials with a DRAC above 3 m/s^2; `SHOW_NEAR=CFG:TRIAL`
-//! the steps of one trial with a vehicle close beside or ahead of the ego.
+//! the steps of one trial with a vehicle close beside or ahead of the ego; `SHOW_DRAC=CFG:TRIAL`
+//! the steps of one trial with a DRAC above 3 m/s^2, with the vehicle the measures took for the
+//! ego's leader (its lateral offset shows a lane change counted in both lanes).
 use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
-use sim_client::episode::{run_episode, Driver};
+use sim_client::episode::{run_episode, run_episode_observed, Driver, StepObserver};
 use sim_client::link::InProcess;
+use sim_client::safety::{measure, Body};
 use std::collections::BTreeMap;
 
 fn main() -> anyhow::Result<()> {
@@ -114,6 +117,10 @@ fn main() -> anyhow::Result<()> {
                         near.join(" ")
                     );
                 }
+            }
+            if std::env::var("SHOW_DRAC").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
+                let mut link = InProcess::new(settings.planner.clone())?;
+                run_episode_observed(&spec, Driver::Planner(&mut link), &mut DracSteps)?;
             }
             if std::env::var("SHOW_NEAR").is_ok_and(|t| t == format!("{}:{}", e.id, trial)) {
                 show_near(&ep.trajectory);
@@ -246,5 +253,41 @@ fn show_near(trajectory: &[sim_client::episode::VehicleState]) {
             );
         }
         println!();
+    }
+}
+
+/// Prints every step with a DRAC above 3 m/s^2 and the vehicles within 12 m along the road.
+struct DracSteps;
+
+impl StepObserver for DracSteps {
+    fn after_step(&mut self, world: &mut traffic::World) -> sim_client::Result<()> {
+        let bodies = Body::all(world);
+        let drac = measure(&bodies).drac_mps2.unwrap_or(0.0);
+        if drac <= 3.0 {
+            return Ok(());
+        }
+        let (ego, ego_y) = (&bodies[0], world.vehicles()[0].y);
+        print!(
+            "t {:5.1} DRAC {drac:6.1} ego v {:5.2} lanes {:?} changing {} |",
+            world.time(),
+            ego.v,
+            ego.lanes,
+            ego.changing_lanes
+        );
+        for (b, v) in bodies.iter().zip(world.vehicles()).skip(1) {
+            if (b.x - ego.x).abs() < 12.0 {
+                print!(
+                    " #{} dx {:.1} dy {:.2} v {:.2} lanes {:?} changing {};",
+                    b.id,
+                    b.x - ego.x,
+                    v.y - ego_y,
+                    b.v,
+                    b.lanes,
+                    b.changing_lanes
+                );
+            }
+        }
+        println!();
+        Ok(())
     }
 }
