@@ -64,7 +64,7 @@ pub struct EpisodeSpec {
 
 /// A planner decision whose first step brakes at or below [`HARD_BRAKING_MPS2`], with the
 /// situation it answered: what `decision`'s `explain_decision` example reads.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HardBrakingDecision {
     /// Simulation time (s).
     pub time_s: f64,
