@@ -221,6 +221,13 @@ pub struct Prediction {
     /// again when it sees so, and repeats. Off: every branch uses the representative
     /// accelerations, as in formulation.md.
     pub measured_accel_while_keeping: bool,
+    /// The braking the ego needs to stay behind an SV braking behind a slower vehicle is
+    /// reckoned with the SV braking down to that one's speed less `braking_end_margin_mps`,
+    /// hedged against its braking on to a standstill (`braking_end.rs`). Off: every braking SV
+    /// is taken to brake to a standstill.
+    pub braking_ends_at_leader: bool,
+    /// How far below the speed of the vehicle it brakes for an SV's braking may go, m/s.
+    pub braking_end_margin_mps: f64,
 }
 
 impl Default for Prediction {
@@ -238,6 +245,8 @@ impl Default for Prediction {
             lateral_departure: LateralDeparture::Always,
             departure_speed_share: 0.75,
             measured_accel_while_keeping: true,
+            braking_ends_at_leader: true,
+            braking_end_margin_mps: 2.0,
             evidence: Evidence::default(),
         }
     }
@@ -502,6 +511,9 @@ impl PlannerConfig {
         }
         if p.noise_diag.iter().any(|q| !(q.is_finite() && *q >= 0.0)) {
             return bad("prediction.noise_diag", "must be finite and non-negative");
+        }
+        if !(p.braking_end_margin_mps.is_finite() && p.braking_end_margin_mps >= 0.0) {
+            return bad("prediction.braking_end_margin_mps", "must be finite and non-negative");
         }
         let h = &self.hysteresis;
         if h.gamma1.partial_cmp(&h.gamma2) != Some(std::cmp::Ordering::Less) {

@@ -135,8 +135,14 @@ pub fn first_step(
     let mut prior = [0.0; 2];
     let mut likelihood = [0.0; 2];
     // A lane change under way is the maneuver state the tree starts in: its lateral velocity
-    // says nothing about a further change, which has the background probability.
-    let under_way = heading.leaving.is_some();
+    // says nothing about a further change, which has the background probability. So too for
+    // one ending: still moving towards its lane's centre and reaching it within a decision
+    // step, an SV shows the change it finishes, not one into the lane beyond (read as a start,
+    // it had the ego beside it brake at 6 m/s^2 for a cut-in that never came). A change that
+    // starts from just off the centre on the far side is seen a step later, once past it.
+    let offset = sv.y_m - road.lane_centre(lane);
+    let arriving = offset * sv.vy_mps < 0.0 && offset.abs() <= sv.vy_mps.abs() * config.timing.step_s;
+    let under_way = heading.leaving.is_some() || arriving;
     for (k, (target, sign)) in sides.iter().enumerate() {
         let Some(target) = *target else { continue };
         if under_way {
@@ -297,6 +303,25 @@ mod tests {
             heading(&config, &road(), &straddling),
             Heading { lane: 1, leaving: None }
         );
+    }
+
+    #[test]
+    fn a_change_ending_is_no_evidence_of_the_next() {
+        let config = PlannerConfig::default();
+        // 1 cm short of lane 2's centre, still moving up into it at 0.24 m/s: the end of a
+        // change from lane 3, not the start of one into lane 1.
+        let arriving = sv(1, 3.0, 3.99, 28.0, 0.24);
+        let f = first_step(&config, &road(), &ego(), &[arriving], &arriving).unwrap();
+        assert!((f.left - 0.05).abs() < 1e-12 && (f.right - 0.05).abs() < 1e-12, "{f:?}");
+        // The same speed 1 cm past the centre, moving away from it: a change starting.
+        let leaving = sv(1, 3.0, 4.01, 28.0, 0.24);
+        let f = first_step(&config, &road(), &ego(), &[leaving], &leaving).unwrap();
+        assert!(f.left > 0.99, "{f:?}");
+        // 8 cm short of the centre at 0.18 m/s: not there within a step (0.4 s), so read as a
+        // change starting from just off the centre (as likely as that speed makes it).
+        let slow = sv(1, 3.0, 3.92, 28.0, 0.18);
+        let f = first_step(&config, &road(), &ego(), &[slow], &slow).unwrap();
+        assert!(f.left > 0.5, "{f:?}");
     }
 
     #[test]

@@ -1,10 +1,10 @@
 //! Layer B: the deterministic fallback (paper eq. fallback_policy). It never fails.
 
+use crate::braking_end::BrakingEnds;
 use crate::config::PlannerConfig;
 use crate::idm::{idm_distance, sv_idm_distance};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::Kinematics;
-use crate::stopping::stopping_decel;
 use crate::types::{Beta, Situation, Threat};
 
 /// The fallback's choice: the new `beta` and the threat that decided it.
@@ -27,7 +27,7 @@ struct Candidate {
     closing: f64,
     /// How far inside its IDM distance it is (negative: outside).
     deficit: f64,
-    /// Braking that keeps the jam distance behind it (`stopping_decel`; 0 behind the ego).
+    /// Braking that keeps the jam distance behind it (`BrakingEnds::needed_decel`; 0 behind the ego).
     stopping: f64,
 }
 
@@ -53,7 +53,7 @@ impl Candidate {
 /// 1. **Front vehicle braking / too close**: an SV ahead in a lane the ego occupies
 ///    (`occupancy0`) that is inside its IDM distance (the distance includes the closing-speed
 ///    term, so a fast approach counts), or that brakes so that staying behind it takes more
-///    than `ego.comfort_decel_mps2` (`stopping_decel`): decelerate, at least that hard. The
+///    than `ego.comfort_decel_mps2` (`BrakingEnds::needed_decel`): decelerate, at least that hard. The
 ///    most critical by time to collision decides. While any front SV is inside its IDM
 ///    distance the fallback never accelerates.
 /// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
@@ -65,6 +65,7 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
     let ego = &s.ego;
     let length = config.vehicle.length_m;
     let tol = config.vehicle.lane_centre_tolerance_m;
+    let braking_ends = BrakingEnds::new(config, s);
     let mut front: Option<Candidate> = None;
     let mut rear: Option<Candidate> = None;
     let mut lateral: Option<u32> = None;
@@ -83,7 +84,7 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                     gap: dx - length,
                     closing: ego.v_mps - sv.v_mps,
                     deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
-                    stopping: stopping_decel(dx - length, config.idm.jam_distance_m, ego.v_mps, sv.v_mps, sv.a_mps2),
+                    stopping: braking_ends.needed_decel(config, sv, dx - length, ego.v_mps),
                 };
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
@@ -114,7 +115,7 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
         }
     }
     if let Some(f) = front {
-        // `stopping_decel` with a leader not braking is the deceleration that stops the
+        // The needed deceleration behind a leader not braking is the one that stops the
         // closing within the gap beyond the jam distance.
         let needed = -f.stopping;
         return FallbackChoice {

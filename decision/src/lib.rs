@@ -12,6 +12,7 @@
 // The configuration's sections are a namespace of their own (`decision::config::IdmParams`);
 // the corpus is the tests' and benches' generator (feature `corpus`). Every other module is
 // private: what the core offers is the list below.
+mod braking_end;
 pub mod config;
 #[cfg(feature = "corpus")]
 pub mod corpus;

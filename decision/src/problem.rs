@@ -2,6 +2,7 @@
 //! solve — perception window, IDM margins, hysteresis refresh, SV scenario trees, and the
 //! safety data of every SV.
 
+use crate::braking_end::BrakingEnds;
 use crate::config::{CostWeights, LateralDeparture, PlannerConfig};
 use crate::evidence;
 use crate::hysteresis;
@@ -9,7 +10,6 @@ use crate::idm::{ego_as_follower, hard_margin, idm_distance, linearised_margins,
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::{rollout, EgoStart, Kinematics, Rollout};
 use crate::scenario::{beta_from_accel, longitudinal_variances, predict_branches_from, Branch};
-use crate::stopping::stopping_decel;
 use crate::types::{Action, CorrectiveEntry, Maneuver, PlannerMemory, Road, Situation, SvObservation};
 
 /// Safety data of one SV inside the perception window.
@@ -182,6 +182,7 @@ struct Context<'a> {
     z: f64,
     nominal: Rollout,
     release_rollout: Rollout,
+    braking_ends: BrakingEnds,
 }
 
 /// Build the problem. The situation must have passed `validate`.
@@ -221,6 +222,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         z,
         nominal,
         release_rollout,
+        braking_ends: BrakingEnds::new(config, s),
     };
 
     let mut svs = Vec::new();
@@ -273,7 +275,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
 /// violation only predicted (a leader slowing a little raises its IDM distance by the
 /// closing-speed term): held strictly, it asked the strongest braking for a leader 1.3 s
 /// ahead slowing at 2.3 m/s^2. The reference never brakes less than staying behind a braking
-/// leader takes (`stopping::stopping_decel`, `needed_decel`): an allowance must not let the
+/// leader takes (`BrakingEnds::needed_decel`): an allowance must not let the
 /// ego follow a leader's emergency braking comfortably into its bumper. The reference rollout
 /// meets these rows by construction (with one fixed acceleration per state, braking at that
 /// harder one meets them too, as the margin falls and the gap grows with braking); the floor
@@ -418,7 +420,7 @@ fn sv_constraint(ctx: &Context, sv: &SvObservation, memory: &PlannerMemory) -> S
     };
     // Only the allowance of an SV ahead in the path uses it.
     let needed_decel = if ahead && in_path {
-        stopping_decel(gap_now, config.idm.jam_distance_m, v0, sv.v_mps, sv.a_mps2)
+        ctx.braking_ends.needed_decel(config, sv, gap_now, v0)
     } else {
         0.0
     };

@@ -1,6 +1,8 @@
-//! A braking leader (`stopping::stopping_decel` in the violation allowance and the fallback):
+//! A braking leader (`braking_end.rs`, `stopping.rs`: the violation allowance and the fallback):
 //! the ego stays behind a leader that brakes hard to a stop, from any headway it follows at,
-//! and does not answer a leader that only slows a little with the strongest braking.
+//! and does not answer a leader that only slows a little with the strongest braking; a leader
+//! braking hard for a slower car ahead of it (`braking_end.rs`) is followed as braking down to
+//! that car's speed, not to a stop, and still survived when it brakes on to a stop after all.
 
 use decision::{
     Decision, EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation,
@@ -8,48 +10,94 @@ use decision::{
 
 const LENGTH_M: f64 = 5.0;
 
-/// The least bumper gap in a closed loop on one lane: ego and leader at `v0`, `headway_s`
-/// apart; from t = 1 s the leader brakes at `brake_mps2` to a stop. The ego applies each
-/// answer's set-point for 0.4 s; both are integrated at 50 ms; the leader's acceleration is
-/// observed as it was.
-fn least_gap(v0: f64, headway_s: f64, brake_mps2: f64) -> (f64, Vec<Layer>) {
-    let mut planner = Planner::new(PlannerConfig::default()).unwrap();
-    let dt = 0.05;
-    let (mut x_ego, mut v_ego) = (0.0, v0);
-    let (mut x_lead, mut v_lead, mut a_lead) = (v0 * headway_s + LENGTH_M, v0, 0.0);
-    let (mut memory, mut beta, mut accel) = (PlannerMemory::default(), 0, 0.0);
-    let (mut least, mut layers) = (f64::INFINITY, Vec::new());
-    for step in 0..400 {
-        if step % 8 == 0 {
-            let s = Situation {
-                road: Road {
-                    lanes: 2,
-                    lane_width_m: 3.5,
-                    speed_limit_mps: 33.33,
-                },
-                ego: EgoState {
-                    x_m: x_ego,
-                    y_m: 0.0,
-                    v_mps: v_ego,
-                    desired_speed_mps: 33.33,
-                    maneuver: Maneuver { lane: 2, beta },
-                },
-                svs: vec![SvObservation::new(1, x_lead, 0.0, v_lead, a_lead)],
-                memory: memory.clone(),
-            };
-            let d = planner.decide(&s).unwrap();
-            (memory, beta, accel) = (d.memory, d.next_maneuver.beta, d.setpoint.accel_mps2);
-            layers.push(d.layer);
+/// A closed loop on one lane: ego and leader at `v0`, `headway_s` apart; from t = 1 s the
+/// leader brakes at `brake_mps2` down to `leader_end_mps` (0: a stop). With `head_mps`, a car
+/// 40 m (bumpers) ahead of the leader holds that speed: what the leader brakes for. The ego
+/// applies each answer's set-point for 0.4 s; all are integrated at 50 ms; the leader's
+/// acceleration is observed as it was.
+struct Run {
+    config: PlannerConfig,
+    v0: f64,
+    headway_s: f64,
+    brake_mps2: f64,
+    leader_end_mps: f64,
+    head_mps: Option<f64>,
+}
+
+/// What a [`Run`] gives: the least bumper gap to the leader, the ego's strongest braking
+/// (m/s^2, <= 0) and the layers of its decisions.
+struct Outcome {
+    least_gap: f64,
+    strongest_braking: f64,
+    layers: Vec<Layer>,
+}
+
+impl Run {
+    fn braking_to_stop(v0: f64, headway_s: f64, brake_mps2: f64) -> Run {
+        Run {
+            config: PlannerConfig::default(),
+            v0,
+            headway_s,
+            brake_mps2,
+            leader_end_mps: 0.0,
+            head_mps: None,
         }
-        let t = f64::from(step) * dt;
-        a_lead = if t >= 1.0 && v_lead > 0.0 { -brake_mps2 } else { 0.0 };
-        v_lead = (v_lead + a_lead * dt).max(0.0);
-        x_lead += v_lead * dt;
-        v_ego = (v_ego + accel * dt).max(0.0);
-        x_ego += v_ego * dt;
-        least = least.min(x_lead - x_ego - LENGTH_M);
     }
-    (least, layers)
+
+    fn outcome(&self) -> Outcome {
+        let mut planner = Planner::new(self.config.clone()).unwrap();
+        let dt = 0.05;
+        let (mut x_ego, mut v_ego) = (0.0, self.v0);
+        let (mut x_lead, mut v_lead, mut a_lead) = (self.v0 * self.headway_s + LENGTH_M, self.v0, 0.0);
+        let mut x_head = x_lead + 40.0 + LENGTH_M;
+        let (mut memory, mut beta, mut accel) = (PlannerMemory::default(), 0, 0.0);
+        let mut out = Outcome {
+            least_gap: f64::INFINITY,
+            strongest_braking: 0.0,
+            layers: Vec::new(),
+        };
+        for step in 0..400 {
+            if step % 8 == 0 {
+                let mut svs = vec![SvObservation::new(1, x_lead, 0.0, v_lead, a_lead)];
+                if let Some(v_head) = self.head_mps {
+                    svs.push(SvObservation::new(2, x_head, 0.0, v_head, 0.0));
+                }
+                let s = Situation {
+                    road: Road {
+                        lanes: 2,
+                        lane_width_m: 3.5,
+                        speed_limit_mps: 33.33,
+                    },
+                    ego: EgoState {
+                        x_m: x_ego,
+                        y_m: 0.0,
+                        v_mps: v_ego,
+                        desired_speed_mps: 33.33,
+                        maneuver: Maneuver { lane: 2, beta },
+                    },
+                    svs,
+                    memory: memory.clone(),
+                };
+                let d = planner.decide(&s).unwrap();
+                (memory, beta, accel) = (d.memory, d.next_maneuver.beta, d.setpoint.accel_mps2);
+                out.layers.push(d.layer);
+                out.strongest_braking = out.strongest_braking.min(accel);
+            }
+            let t = f64::from(step) * dt;
+            a_lead = if t >= 1.0 && v_lead > self.leader_end_mps {
+                -self.brake_mps2
+            } else {
+                0.0
+            };
+            v_lead = (v_lead + a_lead * dt).max(self.leader_end_mps);
+            x_lead += v_lead * dt;
+            x_head += self.head_mps.unwrap_or(0.0) * dt;
+            v_ego = (v_ego + accel * dt).max(0.0);
+            x_ego += v_ego * dt;
+            out.least_gap = out.least_gap.min(x_lead - x_ego - LENGTH_M);
+        }
+        out
+    }
 }
 
 #[test]
@@ -59,10 +107,12 @@ fn the_ego_stops_behind_a_leader_braking_hard_to_a_stop() {
     // is survivable from every headway the planner follows at and from closer.
     for (v0, headway) in [(30.0, 1.9), (30.0, 1.2), (30.0, 0.9), (30.0, 0.6), (20.0, 0.8)] {
         for brake in [3.0, 4.0, 6.0] {
-            let (least, layers) = least_gap(v0, headway, brake);
+            let o = Run::braking_to_stop(v0, headway, brake).outcome();
             assert!(
-                least >= jam - 0.1,
-                "{v0} m/s, {headway} s, leader braking at {brake}: least gap {least:.2} m ({layers:?})"
+                o.least_gap >= jam - 0.1,
+                "{v0} m/s, {headway} s, leader braking at {brake}: least gap {:.2} m ({:?})",
+                o.least_gap,
+                o.layers
             );
         }
     }
@@ -93,4 +143,64 @@ fn a_leader_slowing_a_little_is_answered_by_comfortable_braking() {
     strict.idm.violation_recovery_mps2 = 0.0;
     let d = decide(strict, &s);
     assert!(d.setpoint.accel_mps2 < comfort - 1.0, "{d:?}");
+}
+
+#[test]
+fn a_leader_braking_for_a_slower_car_is_not_followed_as_if_it_stopped() {
+    let jam = PlannerConfig::default().idm.jam_distance_m;
+    // The start of a random scene: the leader, placed behind a car 10 m/s slower, brakes at
+    // 8 m/s^2 down to its speed. (From 0.9 s the room to answer a stop after all takes the
+    // strongest braking either way.)
+    for headway in [1.9, 1.5, 1.2] {
+        let mut run = Run {
+            head_mps: Some(20.0),
+            leader_end_mps: 20.0,
+            ..Run::braking_to_stop(30.0, headway, 8.0)
+        };
+        let explained = run.outcome();
+        run.config.prediction.braking_ends_at_leader = false;
+        let to_stop = run.outcome();
+        for o in [&explained, &to_stop] {
+            assert!(o.least_gap >= jam, "{headway} s: least gap {:.2} m", o.least_gap);
+        }
+        // Taken for a stop, the ego brakes at 6 m/s^2; taken for what it is, at 2-3.3.
+        assert!(
+            explained.strongest_braking > to_stop.strongest_braking + 2.5,
+            "{headway} s: strongest braking {:.2} against {:.2} for a stop",
+            explained.strongest_braking,
+            to_stop.strongest_braking
+        );
+    }
+}
+
+#[test]
+fn a_leader_braking_on_past_what_explained_it_is_still_survived() {
+    let jam = PlannerConfig::default().idm.jam_distance_m;
+    // The car ahead explains braking down to 20 m/s; the leader brakes on to a stop. (At
+    // 8 m/s^2 from 0.6 s even a leader taken for a stop at once is not survivable.)
+    for (v0, headway) in [
+        (30.0, 1.9),
+        (30.0, 1.5),
+        (30.0, 1.2),
+        (30.0, 0.9),
+        (30.0, 0.6),
+        (25.0, 0.8),
+    ] {
+        for brake in [3.0, 4.0, 6.0, 8.0] {
+            if headway == 0.6 && brake == 8.0 {
+                continue;
+            }
+            let run = Run {
+                head_mps: Some(20.0),
+                ..Run::braking_to_stop(v0, headway, brake)
+            };
+            let o = run.outcome();
+            assert!(
+                o.least_gap >= jam - 0.1,
+                "{v0} m/s, {headway} s, leader braking at {brake} past 20 m/s: least gap {:.2} m ({:?})",
+                o.least_gap,
+                o.layers
+            );
+        }
+    }
 }
