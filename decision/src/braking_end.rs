@@ -44,6 +44,10 @@ impl BrakingEnds {
     /// braking for one that brakes itself ends where that one ends, less the margin.
     pub fn new(config: &PlannerConfig, s: &Situation) -> Self {
         let p = &config.prediction;
+        // Most situations have no SV braking: nothing to explain, nothing to allocate.
+        if !p.braking_ends_at_leader || s.svs.iter().all(|sv| sv.a_mps2 >= -p.accel_dead_band_mps2) {
+            return BrakingEnds::default();
+        }
         let tol = config.vehicle.lane_centre_tolerance_m;
         let ego = &s.ego;
         let window = &config.perception;
@@ -129,7 +133,7 @@ impl BrakingEnds {
             return to_end;
         }
         let disproved_below = end + config.prediction.braking_end_margin_mps;
-        let braking = (-sv.a_mps2).max(f64::MIN_POSITIVE);
+        let braking = (-sv.a_mps2).max(1e-6);
         let hold_s = (sv.v_mps - disproved_below).max(0.0) / braking + config.timing.step_s;
         let escalation = -config.ego.max_decel_mps2;
         to_end.max(escalating_decel(
