@@ -35,8 +35,6 @@ struct Body {
     v: f64,
     /// The speed it ends at: its own when it does not brake.
     end: f64,
-    /// Whether `end` is a braking's explained end.
-    explained: bool,
 }
 
 impl BrakingEnds {
@@ -66,7 +64,6 @@ impl BrakingEnds {
                     lanes,
                     v: sv.v_mps,
                     end: sv.v_mps,
-                    explained: false,
                 };
                 Some((body, sv.a_mps2))
             })
@@ -79,33 +76,26 @@ impl BrakingEnds {
                 lanes,
                 v: ego.v_mps,
                 end: ego.v_mps,
-                explained: false,
             };
             bodies.push((body, 0.0));
         }
         bodies.sort_by(|a, b| b.0.x.total_cmp(&a.0.x));
         let mut done: Vec<Body> = Vec::with_capacity(bodies.len());
+        let mut ends = Vec::new();
         for (mut body, accel) in bodies {
             if accel < -p.accel_dead_band_mps2 {
-                body.end = if p.braking_ends_at_leader {
-                    // `done` is in falling x: the last one ahead sharing a lane is the nearest.
-                    let leader = done
-                        .iter()
-                        .rev()
-                        .find(|o| o.x > body.x && o.lanes.intersects(body.lanes));
-                    leader.map_or(0.0, |l| explained_end(config, &body, l))
-                } else {
-                    0.0
-                };
-                body.explained = body.end > 0.0;
+                // `done` is in falling x: the last one ahead sharing a lane is the nearest.
+                let leader = done
+                    .iter()
+                    .rev()
+                    .find(|o| o.x > body.x && o.lanes.intersects(body.lanes));
+                body.end = leader.map_or(0.0, |l| explained_end(config, &body, l));
+                if let (Some(id), true) = (body.id, body.end > 0.0) {
+                    ends.push((id, body.end));
+                }
             }
             done.push(body);
         }
-        let mut ends: Vec<(u32, f64)> = done
-            .iter()
-            .filter(|b| b.explained)
-            .filter_map(|b| Some((b.id?, b.end)))
-            .collect();
         ends.sort_by_key(|e| e.0);
         BrakingEnds { ends }
     }
