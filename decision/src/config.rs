@@ -129,7 +129,10 @@ pub struct IdmParams {
     pub time_headway_s: f64,
     /// Maximum acceleration `a`, m/s^2.
     pub max_accel_mps2: f64,
-    /// Comfortable deceleration `b`, m/s^2.
+    /// Comfortable deceleration `b`, m/s^2: the braking the dynamic term
+    /// `v dv / (2 sqrt(a b))` budgets for matching a slower leader's speed. The paper gives no
+    /// value; 3.0 is the ego's decelerating state (`ego.decel_mps2`; formulation.md: 2.0, see
+    /// docs/following-and-lane-choice.md).
     pub comfort_decel_mps2: f64,
     /// The margin at step `h` follows the ego's predicted speed there (the IDM distance
     /// linearised at the measured speed) instead of staying at its value at the decision.
@@ -170,7 +173,7 @@ impl Default for IdmParams {
             jam_distance_m: 2.0,
             time_headway_s: 1.0,
             max_accel_mps2: 1.5,
-            comfort_decel_mps2: 2.0,
+            comfort_decel_mps2: 3.0,
             speed_dependent: true,
             violation_decay: 0.8,
             violation_recovery_mps2: 1.5,

@@ -113,11 +113,14 @@ pub fn thresholds(h: &Hysteresis, d_idm: f64, d_hc: f64) -> Thresholds {
 mod tests {
     use super::*;
 
-    /// The IDM distance alone, without the least time headway, with `T = 1.5` s.
+    /// The IDM distance alone, without the least time headway, with `T = 1.5` s and
+    /// `a = 1.5`, `b = 2` (so `2 sqrt(a b) = 2 sqrt(3)`).
     fn idm_alone() -> IdmParams {
         IdmParams {
             min_time_headway_s: 0.0,
             time_headway_s: 1.5,
+            max_accel_mps2: 1.5,
+            comfort_decel_mps2: 2.0,
             ..IdmParams::default()
         }
     }

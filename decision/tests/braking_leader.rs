@@ -129,17 +129,24 @@ fn decide(config: PlannerConfig, s: &Situation) -> Decision {
 /// A recorded SUMO decision (`3lanes-dense`, seed 3019, t = 182.8 s): the ego at 30.7 m/s,
 /// its leader 39 m ahead (bumpers) at 32.2 m/s slowing at 2.3 m/s^2, in corrective mode on
 /// it. The leader's predicted slowing raises its IDM distance above the predicted gap at the
-/// horizon's end; held strictly, that asked for the strongest braking (-6 m/s^2).
+/// horizon's end; held strictly, that asked for the strongest braking (-6 m/s^2). Recorded
+/// with the IDM's `b = 2` (formulation.md's), which sizes that distance more widely than the
+/// shipped `b = 3`: the allowance is tested there, where it decides.
 #[test]
 fn a_leader_slowing_a_little_is_answered_by_comfortable_braking() {
     let s = recorded();
+    let comfort = PlannerConfig::default().ego.comfort_decel_mps2;
     let d = decide(PlannerConfig::default(), &s);
     assert_eq!(d.layer, Layer::Nominal, "{d:?}");
-    let comfort = PlannerConfig::default().ego.comfort_decel_mps2;
+    assert!(d.setpoint.accel_mps2 >= comfort - 1e-6, "{d:?}");
+    let mut recorded_with = PlannerConfig::default();
+    recorded_with.idm.comfort_decel_mps2 = 2.0;
+    let d = decide(recorded_with.clone(), &s);
+    assert_eq!(d.layer, Layer::Nominal, "{d:?}");
     assert!(d.setpoint.accel_mps2 >= comfort - 1e-6, "{d:?}");
     // It discriminates: without the allowance for a violation only predicted (its reference
     // braking switched off), the answer brakes beyond the comfort level.
-    let mut strict = PlannerConfig::default();
+    let mut strict = recorded_with;
     strict.idm.violation_recovery_mps2 = 0.0;
     let d = decide(strict, &s);
     assert!(d.setpoint.accel_mps2 < comfort - 1.0, "{d:?}");

@@ -183,12 +183,13 @@ fn fingerprint(config: &PlannerConfig, situations: usize, sequences: usize, dump
 /// The fingerprints of the models: first taken before the LP builder was shared (which kept
 /// them), renewed when the scenario tree began to follow the evidence (the default preset) and
 /// when the paper-literal preset took the paper's rear distance and tree, and for the default
-/// preset again with `T = 1.0` and the lane horizon (the paper preset's kept).
+/// preset again with `T = 1.0` and the lane horizon (the paper preset's kept), and with the
+/// IDM's `b = 3` (the paper preset pins formulation.md's 2 and keeps its own).
 const EXPECTED: &[(&str, u64)] = &[
-    ("default H3 single", 0x577606e029a99bd8),
-    ("default H3 combined", 0xa6643098381cd7ef),
-    ("default H6 single", 0x14aeee7fddd119e1),
-    ("default H6 combined", 0x986aaf11bc031694),
+    ("default H3 single", 0x851adc75705cfaf9),
+    ("default H3 combined", 0x48e2929879bab6c0),
+    ("default H6 single", 0xb1374d3da987150c),
+    ("default H6 combined", 0xca7de50179f52f0c),
     ("paper H3 single", 0x0c58913ba7ba236d),
     ("paper H6 combined", 0x51376cf88c44093a),
     ("paper continuous H3 single", 0xd180a80891ef3b27),
