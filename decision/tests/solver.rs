@@ -68,6 +68,19 @@ fn invalid_configs_are_rejected() {
         PlannerConfig::from_toml_str("[timing]\nhorizon = 0\n"),
         Err(ConfigError::Invalid { .. })
     ));
+    // The IDM's a and b divide its dynamic term: a zero, negative or non-finite one is named.
+    for (text, name) in [
+        ("[idm]\ncomfort_decel_mps2 = 0.0\n", "idm.comfort_decel_mps2"),
+        ("[idm]\ncomfort_decel_mps2 = -3.0\n", "idm.comfort_decel_mps2"),
+        ("[idm]\nmax_accel_mps2 = 0.0\n", "idm.max_accel_mps2"),
+        ("[idm]\nmax_accel_mps2 = inf\n", "idm.max_accel_mps2"),
+        ("[idm]\njam_distance_m = -1.0\n", "idm.jam_distance_m"),
+    ] {
+        match PlannerConfig::from_toml_str(text) {
+            Err(ConfigError::Invalid { field, .. }) => assert_eq!(field, name, "{text}"),
+            other => panic!("{text}: {other:?}"),
+        }
+    }
     assert!(matches!(
         PlannerConfig::from_toml_str("[timing]\nhorizn = 3\n"),
         Err(ConfigError::Parse(_))
