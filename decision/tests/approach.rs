@@ -9,8 +9,9 @@ use decision::{EgoState, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, 
 
 const LENGTH_M: f64 = 5.0;
 
-/// What a closed loop gives: where the ego first brakes (the bumper gap then), its strongest
-/// braking (`None`: it never brakes), the least bumper gap, the distance it covered, and its final gap and speed.
+/// What a closed loop gives: where the ego first brakes (the bumper gap then; `None`: it never
+/// brakes), its strongest braking, the least bumper gap, the distance it covered, and its final
+/// gap and speed.
 #[derive(Debug)]
 struct Approach {
     first_braking_gap: Option<f64>,
