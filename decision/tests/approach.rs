@@ -5,9 +5,10 @@
 //! needs about 0.5 m/s^2; with the shipped `b = 3` (the ego's decelerating state) it brakes
 //! 9-46 m later, still comfortably, and never closer than the least time headway.
 
-use decision::{EgoState, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation};
+mod common;
 
-const LENGTH_M: f64 = 5.0;
+use common::{ClosedLoop, Vehicle, LENGTH_M};
+use decision::PlannerConfig;
 
 /// What a closed loop gives: where the ego first brakes (the bumper gap then; `None`: it never
 /// brakes), its strongest braking, the least bumper gap, the distance it covered, and its final
@@ -22,63 +23,39 @@ struct Approach {
     final_speed: f64,
 }
 
-/// One lane: the ego at 33 m/s, a leader `gap0` m ahead (bumpers) at 25 m/s; from
-/// `leader_accel_from_s` on (if any) the leader speeds up at 1 m/s^2 to 31 m/s. The ego applies
-/// each answer's set-point for 0.4 s; all is integrated at 50 ms for 30 s.
+/// One lane ([`ClosedLoop`], 30 s): the ego at 33 m/s, a leader `gap0` m ahead (bumpers) at
+/// 25 m/s; from `leader_accel_from_s` on (if any) the leader speeds up at 1 m/s^2 to 31 m/s.
 fn approach(config: &PlannerConfig, gap0: f64, leader_accel_from_s: Option<f64>) -> Approach {
-    let mut planner = Planner::new(config.clone()).unwrap();
-    let dt = 0.05;
-    let (mut x_ego, mut v_ego) = (0.0, 33.0);
-    let (mut x_lead, mut v_lead, mut a_lead) = (gap0 + LENGTH_M, 25.0, 0.0);
-    let (mut memory, mut beta, mut accel) = (PlannerMemory::default(), 0, 0.0);
-    let mut out = Approach {
-        first_braking_gap: None,
-        strongest_braking: 0.0,
-        least_gap: f64::INFINITY,
-        distance: 0.0,
-        final_gap: 0.0,
-        final_speed: 0.0,
-    };
-    for step in 0..600 {
-        if step % 8 == 0 {
-            let s = Situation {
-                road: Road {
-                    lanes: 1,
-                    lane_width_m: 3.5,
-                    speed_limit_mps: 33.33,
-                },
-                ego: EgoState {
-                    x_m: x_ego,
-                    y_m: 0.0,
-                    v_mps: v_ego,
-                    desired_speed_mps: 33.0,
-                    maneuver: Maneuver { lane: 1, beta },
-                },
-                svs: vec![SvObservation::new(1, x_lead, 0.0, v_lead, a_lead)],
-                memory: memory.clone(),
-            };
-            let d = planner.decide(&s).unwrap();
-            (memory, beta, accel) = (d.memory, d.next_maneuver.beta, d.setpoint.accel_mps2);
-            if accel < -config.ego.cruise_band_mps2 && out.first_braking_gap.is_none() {
-                out.first_braking_gap = Some(x_lead - x_ego - LENGTH_M);
-            }
-            out.strongest_braking = out.strongest_braking.min(accel);
-        }
-        let t = f64::from(step) * dt;
-        a_lead = match leader_accel_from_s {
-            Some(from) if t >= from && v_lead < 31.0 => 1.0,
+    let leader = Vehicle {
+        x_m: gap0 + LENGTH_M,
+        v_mps: 25.0,
+        accel: Box::new(move |t, v| match leader_accel_from_s {
+            Some(from) if t >= from && v < 31.0 => 1.0,
             _ => 0.0,
-        };
-        v_lead = (v_lead + a_lead * dt).min(31.0);
-        x_lead += v_lead * dt;
-        v_ego = (v_ego + accel * dt).max(0.0);
-        x_ego += v_ego * dt;
-        out.least_gap = out.least_gap.min(x_lead - x_ego - LENGTH_M);
+        }),
+        speed_bounds: (f64::NEG_INFINITY, 31.0),
+    };
+    let trace = ClosedLoop {
+        config: config.clone(),
+        lanes: 1,
+        desired_speed_mps: 33.0,
+        ego_v_mps: 33.0,
+        vehicles: vec![leader],
+        duration_s: 30.0,
     }
-    out.distance = x_ego;
-    out.final_gap = x_lead - x_ego - LENGTH_M;
-    out.final_speed = v_ego;
-    out
+    .run();
+    Approach {
+        first_braking_gap: trace
+            .decisions
+            .iter()
+            .find(|d| d.accel_mps2 < -config.ego.cruise_band_mps2)
+            .map(|d| d.gap_m),
+        strongest_braking: trace.strongest_braking(),
+        least_gap: trace.least_gap_m,
+        distance: trace.ego_x_m,
+        final_gap: trace.final_gap_m,
+        final_speed: trace.ego_v_mps,
+    }
 }
 
 fn with_b(b: f64) -> PlannerConfig {

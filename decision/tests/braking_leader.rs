@@ -4,17 +4,15 @@
 //! braking hard for a slower car ahead of it (`braking_end.rs`) is followed as braking down to
 //! that car's speed, not to a stop, and still survived when it brakes on to a stop after all.
 
-use decision::{
-    Decision, EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation,
-};
+mod common;
 
-const LENGTH_M: f64 = 5.0;
+use common::{ClosedLoop, Vehicle, LENGTH_M};
+use decision::{Decision, Layer, Planner, PlannerConfig, Situation};
 
-/// A closed loop on one lane: ego and leader at `v0`, `headway_s` apart; from t = 1 s the
-/// leader brakes at `brake_mps2` down to `leader_end_mps` (0: a stop). With `head_mps`, a car
-/// 40 m (bumpers) ahead of the leader holds that speed: what the leader brakes for. The ego
-/// applies each answer's set-point for 0.4 s; all are integrated at 50 ms; the leader's
-/// acceleration is observed as it was.
+/// A closed loop on one lane ([`ClosedLoop`]): ego and leader at `v0`, `headway_s` apart; from
+/// t = 1 s the leader brakes at `brake_mps2` down to `leader_end_mps` (0: a stop). With
+/// `head_mps`, a car 40 m (bumpers) ahead of the leader holds that speed: what the leader
+/// brakes for.
 struct Run {
     config: PlannerConfig,
     v0: f64,
@@ -45,58 +43,31 @@ impl Run {
     }
 
     fn outcome(&self) -> Outcome {
-        let mut planner = Planner::new(self.config.clone()).unwrap();
-        let dt = 0.05;
-        let (mut x_ego, mut v_ego) = (0.0, self.v0);
-        let (mut x_lead, mut v_lead, mut a_lead) = (self.v0 * self.headway_s + LENGTH_M, self.v0, 0.0);
-        let mut x_head = x_lead + 40.0 + LENGTH_M;
-        let (mut memory, mut beta, mut accel) = (PlannerMemory::default(), 0, 0.0);
-        let mut out = Outcome {
-            least_gap: f64::INFINITY,
-            strongest_braking: 0.0,
-            layers: Vec::new(),
-        };
-        for step in 0..400 {
-            if step % 8 == 0 {
-                let mut svs = vec![SvObservation::new(1, x_lead, 0.0, v_lead, a_lead)];
-                if let Some(v_head) = self.head_mps {
-                    svs.push(SvObservation::new(2, x_head, 0.0, v_head, 0.0));
-                }
-                let s = Situation {
-                    road: Road {
-                        lanes: 2,
-                        lane_width_m: 3.5,
-                        speed_limit_mps: 33.33,
-                    },
-                    ego: EgoState {
-                        x_m: x_ego,
-                        y_m: 0.0,
-                        v_mps: v_ego,
-                        desired_speed_mps: 33.33,
-                        maneuver: Maneuver { lane: 2, beta },
-                    },
-                    svs,
-                    memory: memory.clone(),
-                };
-                let d = planner.decide(&s).unwrap();
-                (memory, beta, accel) = (d.memory, d.next_maneuver.beta, d.setpoint.accel_mps2);
-                out.layers.push(d.layer);
-                out.strongest_braking = out.strongest_braking.min(accel);
-            }
-            let t = f64::from(step) * dt;
-            a_lead = if t >= 1.0 && v_lead > self.leader_end_mps {
-                -self.brake_mps2
-            } else {
-                0.0
-            };
-            v_lead = (v_lead + a_lead * dt).max(self.leader_end_mps);
-            x_lead += v_lead * dt;
-            x_head += self.head_mps.unwrap_or(0.0) * dt;
-            v_ego = (v_ego + accel * dt).max(0.0);
-            x_ego += v_ego * dt;
-            out.least_gap = out.least_gap.min(x_lead - x_ego - LENGTH_M);
+        let (brake, end) = (self.brake_mps2, self.leader_end_mps);
+        let x_lead = self.v0 * self.headway_s + LENGTH_M;
+        let mut vehicles = vec![Vehicle {
+            x_m: x_lead,
+            v_mps: self.v0,
+            accel: Box::new(move |t, v| if t >= 1.0 && v > end { -brake } else { 0.0 }),
+            speed_bounds: (end, f64::INFINITY),
+        }];
+        if let Some(v_head) = self.head_mps {
+            vehicles.push(Vehicle::steady(x_lead + 40.0 + LENGTH_M, v_head));
         }
-        out
+        let trace = ClosedLoop {
+            config: self.config.clone(),
+            lanes: 2,
+            desired_speed_mps: 33.33,
+            ego_v_mps: self.v0,
+            vehicles,
+            duration_s: 20.0,
+        }
+        .run();
+        Outcome {
+            least_gap: trace.least_gap_m,
+            strongest_braking: trace.strongest_braking(),
+            layers: trace.decisions.iter().map(|d| d.layer).collect(),
+        }
     }
 }
 
