@@ -4,16 +4,17 @@
 //!
 //! `cargo run --release -p sim_client --example diagnose -- [scale] [seed] [config.toml]`
 //!
-//! Environment: `ONLY_CFG=N` runs one configuration; `SHOW=1` lists every hard-braking onset;
+//! Environment: `CAMPAIGN=FILE` runs the configurations of FILE (as `campaign --config`) instead
+//! of Table I; `ONLY_CFG=N` runs one configuration; `SHOW=1` lists every hard-braking onset;
 //! `SHOW_FALLBACK=1` every fallback with the SVs near the ego; `SHOW_TRACE=CFG:TRIAL` one
 //! trial decision by decision (speed, state, plan, the leader); `NEAR_M` how far along the road
 //! `SHOW_FALLBACK` lists SVs (80 m), `DUMP_FALLBACK=DIR` writes their situations as JSON for
 //! `cargo run -p decision --example explain_fallback`; `SHOW_COUNTS=1` the beta
 //! switches per trial; `SHOW_SAFETY=1` the trials with a DRAC above 3 m/s^2; `SHOW_NEAR=CFG:TRIAL`
-//! the steps of one trial with a vehicle close beside or ahead of the ego; `SHOW_DRAC=CFG:TRIAL`
-//! the steps of one trial with a DRAC above 3 m/s^2, with the vehicle the measures took for the
-//! ego's leader (its lateral offset shows a lane change counted in both lanes).
-use sim_client::campaign::{paper_entries, scale_trials, trial_spec, CampaignSettings};
+//! the steps of one trial with a vehicle close beside (`NEAR_DY`, 3 m) or ahead of the ego; `SHOW_DRAC=CFG:TRIAL`
+//! the steps of one trial with a DRAC above 3 m/s^2 or a TTC below 1 s, with the vehicles the
+//! measures took for the ego's leader and follower (its lateral offset shows a lane change counted in both lanes).
+use sim_client::campaign::{load_entries, paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::episode::{run_episode, run_episode_observed, Driver, StepObserver};
 use sim_client::link::InProcess;
 use sim_client::safety::{measure, Body};
@@ -23,7 +24,11 @@ fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let scale: f64 = args.get(1).map_or(Ok(0.03), |s| s.parse())?;
     let seed: u64 = args.get(2).map_or(Ok(2026), |s| s.parse())?;
-    let mut settings = CampaignSettings::new(scale_trials(&paper_entries(), scale)?, seed, 1);
+    let entries = match std::env::var("CAMPAIGN") {
+        Ok(path) => load_entries(std::path::Path::new(&path))?,
+        Err(_) => paper_entries(),
+    };
+    let mut settings = CampaignSettings::new(scale_trials(&entries, scale)?, seed, 1);
     if let Some(path) = args.get(3) {
         settings.planner = decision::PlannerConfig::from_toml_str(&std::fs::read_to_string(path)?)?;
     }
@@ -223,6 +228,11 @@ fn main() -> anyhow::Result<()> {
 /// Every recorded step with a vehicle within 8 m of the ego and less than 3 m beside it: the
 /// ego and the vehicles within 40 m.
 fn show_near(trajectory: &[sim_client::episode::VehicleState]) {
+    // How far to the side a vehicle counts as close (`NEAR_DY`, default 3 m).
+    let near_dy: f64 = std::env::var("NEAR_DY")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3.0);
     let mut steps: BTreeMap<u64, Vec<&sim_client::episode::VehicleState>> = BTreeMap::new();
     for v in trajectory {
         steps.entry(v.step).or_default().push(v);
@@ -233,7 +243,7 @@ fn show_near(trajectory: &[sim_client::episode::VehicleState]) {
         };
         if !vs
             .iter()
-            .any(|v| v.id != 0 && (v.x_m - ego.x_m).abs() < 8.0 && (v.y_m - ego.y_m).abs() < 3.0)
+            .any(|v| v.id != 0 && (v.x_m - ego.x_m).abs() < 8.0 && (v.y_m - ego.y_m).abs() < near_dy)
         {
             continue;
         }
@@ -256,19 +266,21 @@ fn show_near(trajectory: &[sim_client::episode::VehicleState]) {
     }
 }
 
-/// Prints every step with a DRAC above 3 m/s^2 and the vehicles within 12 m along the road.
+/// Prints every step with a DRAC above 3 m/s^2 or a TTC below 1 s, and the vehicles within
+/// 12 m along the road.
 struct DracSteps;
 
 impl StepObserver for DracSteps {
     fn after_step(&mut self, world: &mut traffic::World) -> sim_client::Result<()> {
         let bodies = Body::all(world);
-        let drac = measure(&bodies).drac_mps2.unwrap_or(0.0);
-        if drac <= 3.0 {
+        let m = measure(&bodies);
+        let (drac, ttc) = (m.drac_mps2.unwrap_or(0.0), m.ttc_s().unwrap_or(f64::INFINITY));
+        if drac <= 3.0 && ttc >= 1.0 {
             return Ok(());
         }
         let (ego, ego_y) = (&bodies[0], world.vehicles()[0].y);
         print!(
-            "t {:5.1} DRAC {drac:6.1} ego v {:5.2} lanes {:?} changing {} |",
+            "t {:5.1} DRAC {drac:6.1} TTC {ttc:5.2} ego v {:5.2} lanes {:?} changing {} |",
             world.time(),
             ego.v,
             ego.lanes,

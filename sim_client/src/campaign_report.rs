@@ -1,11 +1,13 @@
-//! The campaign's files: results.csv, results.md and results.json (and hard-braking.jsonl).
+//! The campaign's files: results.csv, results.md, results.json, trials.jsonl (and
+//! hard-braking.jsonl).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::campaign::{ratio, CampaignResults, DriverKind, GroupResult, TracedHardBraking};
+use crate::campaign::{CampaignResults, DriverKind, GroupResult, TracedHardBraking, TrialRecord};
+use crate::campaign_aggregate::ratio;
 use crate::error::{Result, SimClientError};
 use crate::paper::{paper_row_for, PaperRow, PAPER_OVERALL};
 use crate::report::{create_dir, csv_bytes, json_bytes, pct, ttc_cell, write};
@@ -328,7 +330,7 @@ fn nominal_table(s: &mut String, groups: &[GroupResult]) {
     }
 }
 
-/// Writes `DIR/campaign/`: results.json, results.csv, results.md.
+/// Writes `DIR/campaign/`: results.json, results.csv, results.md, trials.jsonl.
 pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
     let dir = out.join("campaign");
     create_dir(&dir)?;
@@ -336,6 +338,7 @@ pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
         write(dir.join("results.json"), &json_bytes(r)?)?,
         write(dir.join("results.csv"), &campaign_csv(r)?)?,
         write(dir.join("results.md"), campaign_markdown(r).as_bytes())?,
+        write(dir.join(TRIALS_FILE), &trials_jsonl(&r.trials)?)?,
     ];
     let trace = dir.join(HARD_BRAKING_FILE);
     match &r.hard_braking {
@@ -345,6 +348,19 @@ pub fn write_campaign(out: &Path, r: &CampaignResults) -> Result<Vec<PathBuf>> {
         None => {}
     }
     Ok(files)
+}
+
+/// Where a campaign writes its trials, in its `campaign/` directory.
+pub const TRIALS_FILE: &str = "trials.jsonl";
+
+/// trials.jsonl: one [`TrialRecord`] per line, every driver's every trial.
+pub fn trials_jsonl(trials: &[TrialRecord]) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    for t in trials {
+        serde_json::to_writer(&mut out, t)?;
+        out.push(b'\n');
+    }
+    Ok(out)
 }
 
 /// One line of hard-braking.jsonl: `where` and `accel` as `explain_decision` reads them.

@@ -12,6 +12,8 @@
 //! planner.
 
 pub mod campaign;
+mod campaign_aggregate;
+pub mod campaign_compare;
 pub mod campaign_report;
 pub mod cases;
 pub mod connect;

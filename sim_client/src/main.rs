@@ -11,9 +11,11 @@ use sim_client::planner_process::{spawn_planner, Serve, SpawnOptions, SpawnedPla
 use sim_client::{Transport, ZenohTarget};
 use transport::iceoryx2::WaitMode;
 
+use compare_command::CompareArgs;
 use load_command::{LoadArgs, LoadWorkerArgs};
 use study_commands::{CampaignArgs, LiveArgs, PaperArgs};
 
+mod compare_command;
 mod load_command;
 mod replay_command;
 mod study_commands;
@@ -286,6 +288,9 @@ enum Command {
         #[command(flatten)]
         campaign: CampaignArgs,
     },
+    /// Two campaign runs of the same seed, paired trial by trial: every headline figure's
+    /// difference with a bootstrap interval (docs/safety-metrics.md, "Comparing two runs").
+    Compare(CompareArgs),
 }
 
 fn print_files(files: &[PathBuf]) {
@@ -334,6 +339,7 @@ fn main() -> Result<()> {
             record,
         } => study_commands::run_case2(&common, seed, &paper, record.as_deref())?,
         Command::Campaign { common, campaign } => study_commands::run_campaign(&common, &campaign)?,
+        Command::Compare(args) => compare_command::run_compare(&args)?,
     }
     println!("wall time {:.2} s", started.elapsed().as_secs_f64());
     if let Some(code) = exit_code {

@@ -1,6 +1,9 @@
 //! The randomized campaign: consistency, thread-count independence, report formatting.
 
-use sim_client::campaign::{paper_entries, parse_entries, run_campaign, scale_trials, CampaignSettings, DriverKind};
+use sim_client::campaign::{
+    aggregate, paper_entries, parse_entries, run_campaign, scale_trials, CampaignSettings, DriverKind, TrialOutcome,
+};
+use sim_client::campaign_compare::{compare, read_trials, Verdict};
 use sim_client::presets::paper_literal;
 use sim_client::report::{campaign_csv, campaign_markdown, write_campaign};
 
@@ -150,9 +153,38 @@ fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
     }
     let dir = tempfile::tempdir().unwrap();
     write_campaign(dir.path(), &one).unwrap();
-    for f in ["results.json", "results.csv", "results.md"] {
+    for f in ["results.json", "results.csv", "results.md", "trials.jsonl"] {
         assert!(dir.path().join("campaign").join(f).exists());
     }
+    // trials.jsonl holds every trial of every driver, enough to compute every row again.
+    let trials = read_trials(dir.path()).unwrap();
+    assert_eq!(trials, one.trials);
+    assert_eq!(trials.len(), 3 * 2 * 4);
+    for g in one.groups.iter().chain(&one.overall) {
+        let outcomes: Vec<TrialOutcome> = trials
+            .iter()
+            .filter(|t| t.driver == g.driver && g.config_id.is_none_or(|c| c == t.config_id))
+            .map(|t| TrialOutcome {
+                config_id: t.config_id,
+                trial: t.trial,
+                driver: t.driver,
+                metrics: t.metrics.clone(),
+                solve_us: Vec::new(),
+                hard_braking: Vec::new(),
+            })
+            .collect();
+        let entry = one.entries.iter().find(|e| Some(e.id) == g.config_id);
+        let mut again = aggregate(entry, g.driver, outcomes.iter(), trials[0].dt_s);
+        again.solve_time = g.solve_time;
+        assert_eq!(&again, g, "row {:?} {:?} from trials.jsonl", g.config_id, g.driver);
+    }
+    // Paired with itself, the planner differs in nothing.
+    let same = compare(&trials, &trials, DriverKind::Planner, 200, 0.95, 1).unwrap();
+    assert_eq!(same.trials, 6);
+    assert!(same
+        .figures
+        .iter()
+        .all(|f| f.verdict != Verdict::Better && f.verdict != Verdict::Worse));
     let csv = String::from_utf8(campaign_csv(&one).unwrap()).unwrap();
     assert_eq!(csv.lines().count(), 1 + 12 + 4);
     let header = csv.lines().next().unwrap();
