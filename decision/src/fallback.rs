@@ -5,7 +5,7 @@ use crate::config::PlannerConfig;
 use crate::idm::{idm_distance, sv_idm_distance};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::Kinematics;
-use crate::types::{Beta, Situation, Threat};
+use crate::types::{Beta, CorrectiveEntry, Situation, Threat};
 
 /// The fallback's choice: the new `beta` and the threat that decided it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,7 +48,7 @@ impl Candidate {
     }
 }
 
-/// The paper's three cases, in this priority:
+/// The paper's three cases, and the band's, in this priority:
 ///
 /// 1. **Front vehicle braking / too close**: an SV ahead in a lane the ego occupies
 ///    (`occupancy0`) that is inside its IDM distance (the distance includes the closing-speed
@@ -58,16 +58,29 @@ impl Candidate {
 ///    distance the fallback never accelerates.
 /// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
 ///    inside its IDM distance: accelerate.
-/// 3. **Lateral risk**: otherwise, an SV alongside in an adjacent lane: hold speed.
+/// 3. **Front vehicle inside its band**: otherwise, an SV ahead in corrective mode closer than
+///    its frozen trigger distance, deeper than the band's slack reaches: decelerate, at
+///    `ego.comfort_decel_mps2` within the state's range (one fixed deceleration per state:
+///    that one). Without this the fallback would hold the ego just outside the IDM distance,
+///    where the nominal problem stays infeasible for as long as the SV stays ahead; braking
+///    opens the gap the nominal rows ask for.
+/// 4. **Lateral risk**: otherwise, an SV alongside in an adjacent lane: hold speed.
 ///
-/// With nothing at all, hold speed.
-pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> FallbackChoice {
+/// With nothing at all, hold speed. `corrective` are the SVs in corrective mode after this
+/// decision's hysteresis refresh.
+pub fn choose(
+    config: &PlannerConfig,
+    s: &Situation,
+    occupancy0: LaneSet,
+    corrective: &[CorrectiveEntry],
+) -> FallbackChoice {
     let ego = &s.ego;
     let length = config.vehicle.length_m;
     let tol = config.vehicle.lane_centre_tolerance_m;
     let braking_ends = BrakingEnds::new(config, s);
     let mut front: Option<Candidate> = None;
     let mut rear: Option<Candidate> = None;
+    let mut band: Option<Candidate> = None;
     let mut lateral: Option<u32> = None;
     for sv in &s.svs {
         let dx = sv.x_m - ego.x_m;
@@ -89,8 +102,11 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
+                let inside_band = corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
                 if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
+                } else if !threat && inside_band && band.as_ref().is_none_or(|b| c.more_critical(b)) {
+                    band = Some(c);
                 }
             } else {
                 let c = Candidate {
@@ -135,6 +151,15 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
             needed_decel_mps2: 0.0,
         };
     }
+    if let Some(b) = band {
+        return FallbackChoice {
+            beta: -1,
+            threat: Threat::Band,
+            sv_id: Some(b.id),
+            ttc_s: b.ttc(),
+            needed_decel_mps2: config.ego.comfort_decel_mps2,
+        };
+    }
     FallbackChoice {
         beta: 0,
         threat: if lateral.is_some() {
@@ -149,14 +174,15 @@ pub fn choose(config: &PlannerConfig, s: &Situation, occupancy0: LaneSet) -> Fal
 }
 
 /// The fallback's acceleration: the state's representative one, braking harder (down to the
-/// range of `beta = -1`) when the front threat needs it.
+/// range of `beta = -1`) when the front threat needs it, and as hard as the choice says (within
+/// that range) for an SV inside its band.
 pub fn acceleration(kin: &Kinematics, choice: &FallbackChoice) -> f64 {
     let (lo, hi) = kin.bounds_of(choice.beta);
     let nominal = kin.accel_of(choice.beta).clamp(lo, hi);
-    if choice.threat == Threat::Front {
-        nominal.min(choice.needed_decel_mps2).clamp(lo, hi)
-    } else {
-        nominal
+    match choice.threat {
+        Threat::Front => nominal.min(choice.needed_decel_mps2).clamp(lo, hi),
+        Threat::Band => choice.needed_decel_mps2.clamp(lo, hi),
+        _ => nominal,
     }
 }
 
@@ -216,7 +242,7 @@ mod tests {
         // Gap 15 m, closing 5 m/s: TTC 3 s. Rear SV: gap 25 m, closing 2 m/s: TTC 12.5 s.
         let s = situation(vec![sv(1, 120.0, 4.0, 15.0), sv(2, 70.0, 4.0, 22.0)]);
         // Needed: 25 / (2 * 13) = 0.96 m/s^2, below the representative -3.
-        let f = choose(&c, &s, LaneSet::single(2));
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
         assert!((f.ttc_s - 3.0).abs() < 1e-12);
     }
@@ -227,7 +253,7 @@ mod tests {
         // Gap 55 m at equal speed (outside the IDM distance of about 22 m), the leader braking
         // at 6 m/s^2: stopping behind it within 53 m + its 33.3 m takes 400 / 172.7 = 2.32 m/s^2.
         let braking = SvObservation::new(1, 160.0, 4.0, 20.0, -6.0);
-        let f = choose(&c, &situation(vec![braking]), LaneSet::single(2));
+        let f = choose(&c, &situation(vec![braking]), LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(1)));
         assert!(
             (f.needed_decel_mps2 + 400.0 / (2.0 * (53.0 + 400.0 / 12.0))).abs() < 1e-6,
@@ -235,7 +261,7 @@ mod tests {
         );
         // Slowing gently is not a threat: staying behind takes less than comfortable braking.
         let gentle = SvObservation::new(1, 160.0, 4.0, 20.0, -0.5);
-        let f = choose(&c, &situation(vec![gentle]), LaneSet::single(2));
+        let f = choose(&c, &situation(vec![gentle]), LaneSet::single(2), &[]);
         assert_eq!(f.threat, Threat::None, "{f:?}");
     }
 
@@ -244,7 +270,7 @@ mod tests {
         let c = PlannerConfig::default();
         // Front: gap 45, closing 1 -> 45 s. Rear: gap 10, closing 10 -> 1 s.
         let s = situation(vec![sv(1, 150.0, 4.0, 19.0), sv(2, 85.0, 4.0, 30.0)]);
-        let f = choose(&c, &s, LaneSet::single(2));
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (1, Threat::Rear, Some(2)));
         assert!((f.ttc_s - 1.0).abs() < 1e-12);
     }
@@ -254,12 +280,41 @@ mod tests {
         let c = PlannerConfig::default();
         // Gap 15 m at equal speed (20 m/s): IDM distance 32 m, no TTC.
         let s = situation(vec![sv(3, 120.0, 4.0, 20.0)]);
-        let f = choose(&c, &s, LaneSet::single(2));
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(3)));
         assert!(f.ttc_s.is_infinite());
         // Beyond its IDM distance it is no threat.
         let s = situation(vec![sv(3, 140.0, 4.0, 20.0)]);
-        assert_eq!(choose(&c, &s, LaneSet::single(2)).threat, Threat::None);
+        assert_eq!(choose(&c, &s, LaneSet::single(2), &[]).threat, Threat::None);
+    }
+
+    #[test]
+    fn a_corrective_front_sv_inside_its_band_brakes_unless_a_rear_sv_closes_in() {
+        let c = PlannerConfig::default();
+        // Gap 35 m at equal speed: beyond the IDM distance (about 22 m), inside a frozen
+        // trigger distance of 40 m.
+        let mut s = situation(vec![sv(3, 140.0, 4.0, 20.0)]);
+        assert_eq!(choose(&c, &s, LaneSet::single(2), &[]).threat, Threat::None);
+        let entry = |trigger_m| CorrectiveEntry {
+            sv_id: 3,
+            release_m: trigger_m + 8.0,
+            trigger_m,
+        };
+        let f = choose(&c, &s, LaneSet::single(2), &[entry(40.0)]);
+        assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Band, Some(3)));
+        // Comfortable braking where the state allows it; the state's one deceleration where
+        // it is fixed (the paper-literal preset).
+        let kin = Kinematics::new(&c);
+        assert_eq!(acceleration(&kin, &f), c.ego.comfort_decel_mps2);
+        let mut fixed = c.clone();
+        fixed.ego.continuous_accel = false;
+        assert_eq!(acceleration(&Kinematics::new(&fixed), &f), fixed.ego.decel_mps2);
+        // Beyond the trigger distance the band's slack reaches: no threat.
+        assert_eq!(choose(&c, &s, LaneSet::single(2), &[entry(30.0)]).threat, Threat::None);
+        // An SV closing in from behind outranks it: the band is no hard row.
+        s.svs.push(sv(2, 85.0, 4.0, 30.0));
+        let f = choose(&c, &s, LaneSet::single(2), &[entry(40.0)]);
+        assert_eq!((f.beta, f.threat, f.sv_id), (1, Threat::Rear, Some(2)));
     }
 
     #[test]
@@ -267,7 +322,7 @@ mod tests {
         let c = PlannerConfig::default();
         // Alongside in lane 1 (y = 8), nothing closing in lane 2.
         let s = situation(vec![sv(4, 102.0, 8.0, 20.0), sv(5, 160.0, 4.0, 25.0)]);
-        let f = choose(&c, &s, LaneSet::single(2));
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (0, Threat::Lateral, Some(4)));
     }
 
@@ -279,7 +334,7 @@ mod tests {
         let mut s = situation(vec![sv(8, 102.0, 4.6, 19.0)]);
         s.ego.y_m = 0.05;
         s.ego.maneuver.lane = 2;
-        let f = choose(&c, &s, LaneSet::single(2).with(3));
+        let f = choose(&c, &s, LaneSet::single(2).with(3), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (-1, Threat::Front, Some(8)));
         assert_eq!(lateral_target(&c, &s, &f), 3);
         // Without the ego's change under way there is nothing to abort.
@@ -291,7 +346,7 @@ mod tests {
     #[test]
     fn nothing_holds_speed() {
         let c = PlannerConfig::default();
-        let f = choose(&c, &situation(vec![sv(1, 400.0, 4.0, 1.0)]), LaneSet::single(2));
+        let f = choose(&c, &situation(vec![sv(1, 400.0, 4.0, 1.0)]), LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat, f.sv_id), (0, Threat::None, None));
     }
 
@@ -300,7 +355,7 @@ mod tests {
         let c = PlannerConfig::default();
         // y = 6 lies between lanes 1 and 2; it shares lane 2 with the ego and is closing.
         let s = situation(vec![sv(9, 115.0, 6.0, 10.0)]);
-        let f = choose(&c, &s, LaneSet::single(2));
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
         assert_eq!((f.beta, f.threat), (-1, Threat::Front));
     }
 }

@@ -192,7 +192,7 @@ pub(crate) fn fallback_decision(
     mut stats: SolveStats,
     mut memory: crate::types::PlannerMemory,
 ) -> Decision {
-    let choice = fallback::choose(config, situation, problem.ego.occupancy);
+    let choice = fallback::choose(config, situation, problem.ego.occupancy, &memory.corrective);
     stats.fallback_threat = Some(choice.threat);
     memory.previous_plan.clear();
     let start = situation.ego.maneuver;

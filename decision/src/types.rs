@@ -166,6 +166,8 @@ pub struct PlanStep {
 pub enum Threat {
     Front,
     Rear,
+    /// An SV ahead closer than its frozen trigger distance (beyond its IDM distance).
+    Band,
     Lateral,
     None,
 }

@@ -87,6 +87,16 @@ pub const FIGURES: &[Figure] = &[
         value: |g| Some(100.0 * g.collision_rate),
     },
     Figure {
+        name: "NOR (%)",
+        better: Better::Higher,
+        value: |g| g.nor.map(|v| 100.0 * v),
+    },
+    Figure {
+        name: "NOR, plain MPC (%)",
+        better: Better::Higher,
+        value: |g| g.plain_nor.map(|v| 100.0 * v),
+    },
+    Figure {
         name: "FBR (%)",
         better: Better::Lower,
         value: |g| g.fbr.map(|v| 100.0 * v),
