@@ -1,7 +1,9 @@
 //! `sim_client compare` end to end: two campaign runs of the real binary, one of them with
 //! another planner configuration, paired trial by trial. The figures `compare` recomputes
 //! from trials.jsonl must be the ones each campaign wrote to its results.json; runs of
-//! another seed are refused with a clear error.
+//! another seed are refused with a clear error. An independent oracle,
+//! clients/campaign_check/check_trials.py (Python, from the metrics' definitions), recomputes
+//! every row of results.json from trials.jsonl, and catches a tampered trial.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -132,6 +134,38 @@ fn compare_pairs_two_runs_and_recomputes_their_reported_figures() {
     for f in same["figures"].as_array().unwrap() {
         assert!(f["verdict"] == "no_difference" || f["verdict"] == "undefined", "{f}");
     }
+    // The Python oracle agrees with every row, and notices one switch more in one trial.
+    let check = |run: &str| {
+        Command::new("python3")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../clients/campaign_check/check_trials.py"))
+            .arg(run)
+            .output()
+            .expect("python3 runs")
+    };
+    let ok = check(&base);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("all 3 rows agree"));
+    let tampered = dir.join("tampered");
+    std::fs::create_dir_all(tampered.join("campaign")).unwrap();
+    std::fs::copy(
+        Path::new(&base).join("campaign/results.json"),
+        tampered.join("campaign/results.json"),
+    )
+    .unwrap();
+    let trials = std::fs::read_to_string(Path::new(&base).join("campaign/trials.jsonl")).unwrap();
+    let first = trials.lines().next().unwrap();
+    let mut v: Value = serde_json::from_str(first).unwrap();
+    let switches = v["metrics"]["beta_switches"].as_u64().unwrap();
+    v["metrics"]["beta_switches"] = (switches + 1).into();
+    let rest: Vec<&str> = trials.lines().skip(1).collect();
+    std::fs::write(
+        tampered.join("campaign/trials.jsonl"),
+        format!("{v}\n{}\n", rest.join("\n")),
+    )
+    .unwrap();
+    let bad = check(tampered.to_str().unwrap());
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("MISMATCH"));
     // Another seed met other traffic: nothing to pair.
     let other = campaign(&dir, "other", "78", None);
     let out = sim_client(&["compare", &base, &other]);
