@@ -31,12 +31,14 @@ def figures(trials):
     dt = trials[0]["dt_s"]
     simulated = sum(x["simulated_s"] for x in m)
     steps = sum(x["safety"]["steps"] for x in m)
-    layers = {}
+    layers, split = {}, {}
     for x in m:
         for k, n in x["decisions_by_layer"].items():
             layers[k] = layers.get(k, 0) + n
-    # Answers counted as decisions: every layer but the rejections.
-    total = sum(n for k, n in layers.items() if k != "rejected")
+        for k, n in x["nominal_split"].items():
+            split[k] = split.get(k, 0) + n
+    # The shares are of everything counted, rejections included.
+    total = sum(layers.values())
     planner = trials[0]["driver"] != "idm_mobil"
     minutes = simulated / 60.0
     hours = steps * dt / 3600.0
@@ -49,7 +51,11 @@ def figures(trials):
         "beta_switches_per_min": ratio(sum(x["beta_switches"] for x in m), minutes),
         "lane_changes_per_min": ratio(sum(x["lane_changes"] for x in m), minutes),
         "nor": ratio(layers.get("nominal", 0), total) if planner else None,
+        # The plain MPC's share: plain, or relaxed by choice where the plain MPC had a plan too.
+        "plain_nor": ratio(split.get("plain", 0) + split.get("relaxed_by_choice", 0), total) if planner else None,
+        "gsrr": ratio(layers.get("global_relaxation", 0), total) if planner else None,
         "fbr": ratio(layers.get("fallback", 0), total) if planner else None,
+        "safety.min_ttc_min_s": nearest_rank([x["safety"]["min_ttc_s"] for x in m], 0.0),
         "safety.min_ttc_p5_s": nearest_rank([x["safety"]["min_ttc_s"] for x in m], 0.05),
         "safety.min_ttc_p50_s": nearest_rank([x["safety"]["min_ttc_s"] for x in m], 0.5),
         "safety.ttc_below_3s_share": ratio(sum(x["safety"]["ttc_below_3s_steps"] for x in m), steps),

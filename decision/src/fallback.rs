@@ -16,7 +16,8 @@ pub struct FallbackChoice {
     pub sv_id: Option<u32>,
     /// Its time to collision, s (infinite when not closing).
     pub ttc_s: f64,
-    /// Braking the threat asks for to keep the jam distance, m/s^2 (0 unless `Front`).
+    /// Braking the threat asks for, m/s^2: to keep the jam distance behind a `Front` threat,
+    /// the comfortable braking for a `Band` one, 0 otherwise.
     pub needed_decel_mps2: f64,
 }
 
@@ -58,12 +59,14 @@ impl Candidate {
 ///    distance the fallback never accelerates.
 /// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
 ///    inside its IDM distance: accelerate.
-/// 3. **Front vehicle inside its band**: otherwise, an SV ahead in corrective mode closer than
-///    its frozen trigger distance, deeper than the band's slack reaches: decelerate, at
+/// 3. **Front vehicle inside its band**: otherwise, with the band's slack bounded by `d_HS`
+///    (`hysteresis.soft_band = false`, the paper's bound), an SV ahead in corrective mode closer
+///    than its frozen trigger distance, deeper than that slack reaches: decelerate, at
 ///    `ego.comfort_decel_mps2` within the state's range (one fixed deceleration per state:
 ///    that one). Without this the fallback would hold the ego just outside the IDM distance,
 ///    where the nominal problem stays infeasible for as long as the SV stays ahead; braking
-///    opens the gap the nominal rows ask for.
+///    opens the gap the nominal rows ask for. With the soft band the band is no hard row, and
+///    following inside the trigger distance is ordinary: not a threat.
 /// 4. **Lateral risk**: otherwise, an SV alongside in an adjacent lane: hold speed.
 ///
 /// With nothing at all, hold speed. `corrective` are the SVs in corrective mode after this
@@ -102,7 +105,8 @@ pub fn choose(
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
-                let inside_band = corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
+                let inside_band =
+                    !config.hysteresis.soft_band && corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
                 if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
                 } else if !threat && inside_band && band.as_ref().is_none_or(|b| c.more_critical(b)) {
@@ -194,6 +198,10 @@ pub fn acceleration(kin: &Kinematics, choice: &FallbackChoice) -> f64 {
 pub fn lateral_target(config: &PlannerConfig, s: &Situation, choice: &FallbackChoice) -> u8 {
     let target = s.ego.maneuver.lane;
     let tol = config.vehicle.lane_centre_tolerance_m;
+    // An SV inside its band is beyond its IDM distance: braking is enough, the change stays.
+    if choice.threat == Threat::Band {
+        return target;
+    }
     let Some(sv) = choice.sv_id.and_then(|id| s.svs.iter().find(|sv| sv.id == id)) else {
         return target;
     };
@@ -290,7 +298,9 @@ mod tests {
 
     #[test]
     fn a_corrective_front_sv_inside_its_band_brakes_unless_a_rear_sv_closes_in() {
-        let c = PlannerConfig::default();
+        // The paper's band: slack bounded by d_HS.
+        let mut c = PlannerConfig::default();
+        c.hysteresis.soft_band = false;
         // Gap 35 m at equal speed: beyond the IDM distance (about 22 m), inside a frozen
         // trigger distance of 40 m.
         let mut s = situation(vec![sv(3, 140.0, 4.0, 20.0)]);
@@ -311,6 +321,18 @@ mod tests {
         assert_eq!(acceleration(&Kinematics::new(&fixed), &f), fixed.ego.decel_mps2);
         // Beyond the trigger distance the band's slack reaches: no threat.
         assert_eq!(choose(&c, &s, LaneSet::single(2), &[entry(30.0)]).threat, Threat::None);
+        // With the soft band, following inside the trigger distance is no threat at all (a
+        // watchdog's fallback must not brake for it).
+        let soft = PlannerConfig::default();
+        assert_eq!(
+            choose(&soft, &s, LaneSet::single(2), &[entry(40.0)]).threat,
+            Threat::None
+        );
+        // A lane change under way is kept: the SV is beyond its IDM distance.
+        let mut changing = s.clone();
+        changing.ego.y_m = 0.05;
+        let f = choose(&c, &changing, LaneSet::single(2).with(3), &[entry(40.0)]);
+        assert_eq!((f.threat, lateral_target(&c, &changing, &f)), (Threat::Band, 2));
         // An SV closing in from behind outranks it: the band is no hard row.
         s.svs.push(sv(2, 85.0, 4.0, 30.0));
         let f = choose(&c, &s, LaneSet::single(2), &[entry(40.0)]);

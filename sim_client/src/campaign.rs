@@ -347,6 +347,10 @@ pub struct TrialRecord {
     pub seed: u64,
     /// The simulator step (s), which converts the safety figures' steps to time.
     pub dt_s: f64,
+    /// The episode's duration (s).
+    pub duration_s: f64,
+    /// The configuration's traffic: with the seed, what makes two runs' trial the same.
+    pub traffic: TrafficConfig,
     /// The trial's reproducible metrics.
     pub metrics: EpisodeMetrics,
 }
@@ -490,6 +494,13 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
             trial: o.trial,
             seed: trial_seed(settings.seed, o.config_id, o.trial),
             dt_s: settings.params.dt,
+            duration_s: settings.duration_s,
+            traffic: settings
+                .entries
+                .iter()
+                .find(|e| e.id == o.config_id)
+                .expect("every outcome is of a configuration run")
+                .traffic,
             metrics: o.metrics.clone(),
         })
         .collect();

@@ -154,8 +154,10 @@ pub struct PairedTrial {
 /// The comparison of two runs for one driver.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Comparison {
-    /// Driver compared.
+    /// The baseline run's driver.
     pub driver: DriverKind,
+    /// The candidate run's driver.
+    pub candidate_driver: DriverKind,
     /// Paired trials.
     pub trials: usize,
     /// Bootstrap resamples.
@@ -242,10 +244,10 @@ struct Paired {
     dt: f64,
 }
 
-/// The paired trials of `driver`, or a typed error when the runs did not run the same trials
-/// on the same seeds.
-fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], driver: DriverKind) -> Result<Paired> {
-    let index = |runs: &[TrialRecord], which: &str| -> Result<BTreeMap<(u32, u32), TrialRecord>> {
+/// The paired trials (the baseline's of `drivers.0`, the candidate's of `drivers.1`), or a
+/// typed error when the runs did not run the same trials of the same traffic on the same seeds.
+fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], drivers: (DriverKind, DriverKind)) -> Result<Paired> {
+    let index = |runs: &[TrialRecord], driver: DriverKind, which: &str| -> Result<BTreeMap<(u32, u32), TrialRecord>> {
         let mut m = BTreeMap::new();
         for r in runs.iter().filter(|r| r.driver == driver) {
             if m.insert((r.config_id, r.trial), r.clone()).is_some() {
@@ -263,7 +265,10 @@ fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], driver: DriverKind)
         }
         Ok(m)
     };
-    let (b, c) = (index(baseline, "baseline")?, index(candidate, "candidate")?);
+    let (b, c) = (
+        index(baseline, drivers.0, "baseline")?,
+        index(candidate, drivers.1, "candidate")?,
+    );
     if b.len() != c.len() || b.keys().ne(c.keys()) {
         return Err(SimClientError::Config(format!(
             "the runs have different trials ({} and {}): compare runs of the same configurations",
@@ -279,6 +284,12 @@ fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], driver: DriverKind)
             return Err(SimClientError::Config(format!(
                 "configuration {} trial {} ran on different seeds: compare runs of the same campaign seed",
                 key.0, key.1
+            )));
+        }
+        if rb.traffic != rc.traffic || rb.duration_s != rc.duration_s {
+            return Err(SimClientError::Config(format!(
+                "configuration {} has other traffic or another duration in the two runs: compare runs of the same configurations",
+                key.0
             )));
         }
         if rb.dt_s != rc.dt_s || dt.is_some_and(|d| d != rb.dt_s) {
@@ -308,18 +319,14 @@ fn verdict(better: Better, lo: f64, hi: f64) -> Verdict {
     }
 }
 
-/// Nearest-rank quantile of sorted values.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
-    sorted[rank - 1]
-}
-
-/// Compares `driver` in two runs: each figure's difference with a central bootstrap interval
-/// at `confidence` from `resamples` stratified resamples of the paired trials.
+/// Compares two runs' drivers (`drivers.0` in the baseline run, `drivers.1` in the candidate
+/// run; the same driver of two runs, or two drivers of one run): each figure's difference
+/// with a central bootstrap interval at `confidence` from `resamples` stratified resamples of
+/// the paired trials.
 pub fn compare(
     baseline: &[TrialRecord],
     candidate: &[TrialRecord],
-    driver: DriverKind,
+    drivers: (DriverKind, DriverKind),
     resamples: usize,
     confidence: f64,
     seed: u64,
@@ -334,9 +341,11 @@ pub fn compare(
         candidate: co,
         seeds,
         dt,
-    } = pair(baseline, candidate, driver)?;
-    let whole = |o: &[TrialOutcome]| aggregate(None, driver, o.iter(), dt);
-    let (gb, gc) = (whole(&bo), whole(&co));
+    } = pair(baseline, candidate, drivers)?;
+    let (gb, gc) = (
+        aggregate(None, drivers.0, bo.iter(), dt),
+        aggregate(None, drivers.1, co.iter(), dt),
+    );
     let mut strata: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, o) in bo.iter().enumerate() {
         strata.entry(o.config_id).or_default().push(i);
@@ -349,8 +358,8 @@ pub fn compare(
         for members in strata.values() {
             drawn.extend((0..members.len()).map(|_| members[draws.below(members.len())]));
         }
-        let rb = aggregate(None, driver, drawn.iter().map(|&i| &bo[i]), dt);
-        let rc = aggregate(None, driver, drawn.iter().map(|&i| &co[i]), dt);
+        let rb = aggregate(None, drivers.0, drawn.iter().map(|&i| &bo[i]), dt);
+        let rc = aggregate(None, drivers.1, drawn.iter().map(|&i| &co[i]), dt);
         for (f, d) in FIGURES.iter().zip(diffs.iter_mut()) {
             if let (Some(x), Some(y)) = ((f.value)(&rb), (f.value)(&rc)) {
                 d.push(y - x);
@@ -367,7 +376,9 @@ pub fn compare(
             // An interval from a few defined resamples would say more than they do.
             let interval = (difference.is_some() && d.len() * 20 >= resamples * 19).then(|| {
                 d.sort_by(f64::total_cmp);
-                (quantile(d, tail), quantile(d, 1.0 - tail))
+                // As many resamples below the interval as above it.
+                let k = ((tail * d.len() as f64) + 1e-9).floor() as usize;
+                (d[k], d[d.len() - 1 - k])
             });
             FigureComparison {
                 name: f.name,
@@ -392,7 +403,8 @@ pub fn compare(
         })
         .collect();
     Ok(Comparison {
-        driver,
+        driver: drivers.0,
+        candidate_driver: drivers.1,
         trials: bo.len(),
         resamples,
         confidence,
@@ -406,9 +418,14 @@ pub fn compare(
 pub fn comparison_table(c: &Comparison) -> String {
     use std::fmt::Write as _;
     let cell = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    let drivers = if c.driver == c.candidate_driver {
+        c.driver.name().to_string()
+    } else {
+        format!("{} against {}", c.candidate_driver.name(), c.driver.name())
+    };
     let mut out = format!(
         "{}: {} paired trials, {} resamples, {:.0} % intervals (seed {})\n{:<20} {:>10} {:>10} {:>10}  {:<22} {}\n",
-        c.driver.name(),
+        drivers,
         c.trials,
         c.resamples,
         100.0 * c.confidence,

@@ -1,6 +1,7 @@
 use super::*;
 use crate::metrics::{CollisionSplit, EpisodeMetrics, LayerCounts, NominalSplit};
 use crate::safety::SafetySummary;
+use traffic::TrafficConfig;
 
 /// A trial of 30 s (750 steps of 0.04 s) with the given speed, beta switches and least TTC.
 fn trial(config_id: u32, trial: u32, speed: f64, switches: u32, min_ttc: Option<f64>) -> TrialRecord {
@@ -10,6 +11,11 @@ fn trial(config_id: u32, trial: u32, speed: f64, switches: u32, min_ttc: Option<
         trial,
         seed: 1000 * u64::from(config_id) + u64::from(trial),
         dt_s: 0.04,
+        duration_s: 30.0,
+        traffic: TrafficConfig {
+            lanes: 1 + config_id as u8,
+            ..TrafficConfig::default()
+        },
         metrics: EpisodeMetrics {
             decisions: 75,
             decisions_by_layer: LayerCounts::default(),
@@ -54,7 +60,7 @@ fn a_run_against_itself_differs_in_nothing() {
     let base = run(50, |c, t| {
         trial(c, t, 25.0 + noise(&mut d), t % 4, Some(3.0 + t as f64 / 10.0))
     });
-    let cmp = compare(&base, &base, DriverKind::Planner, 500, 0.95, 1).unwrap();
+    let cmp = compare(&base, &base, (DriverKind::Planner, DriverKind::Planner), 500, 0.95, 1).unwrap();
     assert_eq!(cmp.trials, 100);
     for f in &cmp.figures {
         assert_eq!(f.difference, Some(0.0), "{}", f.name);
@@ -79,7 +85,7 @@ fn a_paired_shift_is_found_and_its_interval_has_the_width_normal_theory_gives() 
             r
         })
         .collect();
-    let cmp = compare(&base, &cand, DriverKind::Planner, 2000, 0.95, 3).unwrap();
+    let cmp = compare(&base, &cand, (DriverKind::Planner, DriverKind::Planner), 2000, 0.95, 3).unwrap();
     let speed = figure(&cmp, "mean speed (m/s)");
     let diff = speed.difference.unwrap();
     let (lo, hi) = speed.interval.unwrap();
@@ -93,8 +99,11 @@ fn a_paired_shift_is_found_and_its_interval_has_the_width_normal_theory_gives() 
     assert!((switches.difference.unwrap() - 2.0).abs() < 1e-9);
     assert_eq!(switches.verdict, Verdict::Worse);
     // The same inputs and seed give the same intervals; another seed other draws.
-    assert_eq!(cmp, compare(&base, &cand, DriverKind::Planner, 2000, 0.95, 3).unwrap());
-    let other = compare(&base, &cand, DriverKind::Planner, 2000, 0.95, 4).unwrap();
+    assert_eq!(
+        cmp,
+        compare(&base, &cand, (DriverKind::Planner, DriverKind::Planner), 2000, 0.95, 3).unwrap()
+    );
+    let other = compare(&base, &cand, (DriverKind::Planner, DriverKind::Planner), 2000, 0.95, 4).unwrap();
     assert_ne!(figure(&other, "mean speed (m/s)").interval, speed.interval);
 }
 
@@ -113,7 +122,7 @@ fn a_ttc_percentile_shift_is_resampled_like_the_report_computes_it() {
             r
         })
         .collect();
-    let cmp = compare(&base, &cand, DriverKind::Planner, 300, 0.9, 1).unwrap();
+    let cmp = compare(&base, &cand, (DriverKind::Planner, DriverKind::Planner), 300, 0.9, 1).unwrap();
     for name in ["min TTC p5 (s)", "min TTC p50 (s)"] {
         let f = figure(&cmp, name);
         let d = f.difference.unwrap();
@@ -137,19 +146,42 @@ fn a_ttc_percentile_shift_is_resampled_like_the_report_computes_it() {
 fn runs_of_other_trials_or_seeds_are_refused() {
     let base = run(5, |c, t| trial(c, t, 25.0, 1, None));
     let fewer: Vec<TrialRecord> = base.iter().take(9).cloned().collect();
-    let err = compare(&base, &fewer, DriverKind::Planner, 10, 0.95, 1).unwrap_err();
+    let err = compare(&base, &fewer, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).unwrap_err();
     assert!(err.to_string().contains("different trials"), "{err}");
     let mut reseeded = base.clone();
     reseeded[3].seed += 1;
-    let err = compare(&base, &reseeded, DriverKind::Planner, 10, 0.95, 1).unwrap_err();
+    let err = compare(
+        &base,
+        &reseeded,
+        (DriverKind::Planner, DriverKind::Planner),
+        10,
+        0.95,
+        1,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("different seeds"), "{err}");
-    let err = compare(&base, &base, DriverKind::IdmMobil, 10, 0.95, 1).unwrap_err();
+    let err = compare(&base, &base, (DriverKind::IdmMobil, DriverKind::IdmMobil), 10, 0.95, 1).unwrap_err();
     assert!(err.to_string().contains("no trial of idm_mobil"), "{err}");
+    let mut other_traffic = base.clone();
+    other_traffic.iter_mut().for_each(|r| r.traffic.sv_count += 1);
+    let err = compare(
+        &base,
+        &other_traffic,
+        (DriverKind::Planner, DriverKind::Planner),
+        10,
+        0.95,
+        1,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("other traffic"), "{err}");
+    let mut longer = base.clone();
+    longer[0].duration_s = 60.0;
+    assert!(compare(&base, &longer, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).is_err());
     let mut twice = base.clone();
     twice.push(base[0].clone());
-    assert!(compare(&twice, &base, DriverKind::Planner, 10, 0.95, 1).is_err());
-    assert!(compare(&base, &base, DriverKind::Planner, 0, 0.95, 1).is_err());
-    assert!(compare(&base, &base, DriverKind::Planner, 10, 1.0, 1).is_err());
+    assert!(compare(&twice, &base, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).is_err());
+    assert!(compare(&base, &base, (DriverKind::Planner, DriverKind::Planner), 0, 0.95, 1).is_err());
+    assert!(compare(&base, &base, (DriverKind::Planner, DriverKind::Planner), 10, 1.0, 1).is_err());
 }
 
 #[test]
@@ -168,4 +200,26 @@ fn records_read_back_from_trials_jsonl() {
     std::fs::write(path.join("trials.jsonl"), "{\"driver\": \"planner\"}\n").unwrap();
     let err = read_trials(dir.path()).unwrap_err();
     assert!(err.to_string().contains("line 1"), "{err}");
+}
+
+#[test]
+fn two_drivers_of_one_run_are_each_aggregated_as_what_they_are() {
+    // The same trials driven by the IDM + MOBIL ego: it has no layers, so NOR and FBR are
+    // undefined for it, not 0.
+    let planner = run(20, |c, t| trial(c, t, 25.0, 2, Some(5.0)));
+    let mut both = planner.clone();
+    both.extend(planner.iter().map(|r| {
+        let mut r = r.clone();
+        r.driver = DriverKind::IdmMobil;
+        r.metrics.mean_speed_mps -= 1.0;
+        r
+    }));
+    let cmp = compare(&both, &both, (DriverKind::IdmMobil, DriverKind::Planner), 200, 0.95, 1).unwrap();
+    assert_eq!(cmp.trials, 40);
+    assert!((figure(&cmp, "mean speed (m/s)").difference.unwrap() - 1.0).abs() < 1e-9);
+    for name in ["NOR (%)", "FBR (%)"] {
+        let f = figure(&cmp, name);
+        assert_eq!((f.baseline, f.verdict), (None, Verdict::Undefined), "{name}");
+    }
+    assert!(comparison_table(&cmp).starts_with("planner against idm_mobil:"));
 }

@@ -61,19 +61,13 @@ pub struct CompareArgs {
 
 pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let driver = DriverKind::from(args.driver);
+    let candidate_driver = args.candidate_driver.map_or(driver, DriverKind::from);
     let baseline = read_trials(&args.baseline)?;
-    let mut candidate = read_trials(&args.candidate)?;
-    if let Some(other) = args.candidate_driver {
-        // Compared as if it were the baseline's driver: same trials, another driver.
-        let other = DriverKind::from(other);
-        println!("baseline: {}, candidate: {}", driver.name(), other.name());
-        candidate.retain(|r| r.driver == other);
-        candidate.iter_mut().for_each(|r| r.driver = driver);
-    }
+    let candidate = read_trials(&args.candidate)?;
     let c = compare(
         &baseline,
         &candidate,
-        driver,
+        (driver, candidate_driver),
         args.resamples,
         args.confidence,
         args.seed,

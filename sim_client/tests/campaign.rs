@@ -179,7 +179,15 @@ fn tiny_campaign_is_consistent_and_independent_of_thread_count() {
         assert_eq!(&again, g, "row {:?} {:?} from trials.jsonl", g.config_id, g.driver);
     }
     // Paired with itself, the planner differs in nothing.
-    let same = compare(&trials, &trials, DriverKind::Planner, 200, 0.95, 1).unwrap();
+    let same = compare(
+        &trials,
+        &trials,
+        (DriverKind::Planner, DriverKind::Planner),
+        200,
+        0.95,
+        1,
+    )
+    .unwrap();
     assert_eq!(same.trials, 6);
     assert!(same
         .figures

@@ -43,9 +43,9 @@ fn succeed(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-fn campaign(dir: &Path, name: &str, seed: &str, planner_config: Option<&Path>) -> String {
+fn campaign(dir: &Path, configs: &str, name: &str, seed: &str, planner_config: Option<&Path>) -> String {
     let out = dir.join(name);
-    let (config, out_s) = (dir.join("configs.toml"), out.to_str().unwrap().to_owned());
+    let (config, out_s) = (dir.join(configs), out.to_str().unwrap().to_owned());
     let mut args = vec![
         "campaign",
         "--config",
@@ -95,8 +95,8 @@ fn compare_pairs_two_runs_and_recomputes_their_reported_figures() {
     // The IDM's b of formulation.md against the shipped one: a change that moves the speed.
     let b2 = dir.join("b2.toml");
     std::fs::write(&b2, "[idm]\ncomfort_decel_mps2 = 2.0\n").unwrap();
-    let base = campaign(&dir, "base", "77", Some(&b2));
-    let cand = campaign(&dir, "cand", "77", None);
+    let base = campaign(&dir, "configs.toml", "base", "77", Some(&b2));
+    let cand = campaign(&dir, "configs.toml", "cand", "77", None);
     let json = dir.join("cmp.json");
     let table = succeed(&[
         "compare",
@@ -122,9 +122,9 @@ fn compare_pairs_two_runs_and_recomputes_their_reported_figures() {
             let reported = row.pointer(pointer).unwrap().as_f64();
             assert_eq!(f[side].as_f64(), reported, "{name} {side}: {f} against results.json");
         }
-        if let (Some(d), Some(i)) = (f["difference"].as_f64(), f["interval"].as_array()) {
+        if let Some(i) = f["interval"].as_array() {
             let (lo, hi) = (i[0].as_f64().unwrap(), i[1].as_f64().unwrap());
-            assert!(lo <= d && d <= hi, "{name}: {d} outside [{lo}, {hi}]");
+            assert!(lo <= hi, "{name}: [{lo}, {hi}]");
         }
     }
     // A run against itself: every figure the same, every interval the point 0.
@@ -132,7 +132,10 @@ fn compare_pairs_two_runs_and_recomputes_their_reported_figures() {
     succeed(&["compare", &base, &base, "--json", same.to_str().unwrap()]);
     let same: Value = serde_json::from_str(&std::fs::read_to_string(&same).unwrap()).unwrap();
     for f in same["figures"].as_array().unwrap() {
-        assert!(f["verdict"] == "no_difference" || f["verdict"] == "undefined", "{f}");
+        if f["verdict"] != "undefined" {
+            assert_eq!(f["verdict"], "no_difference", "{f}");
+            assert_eq!(f["interval"], serde_json::json!([0.0, 0.0]), "{f}");
+        }
     }
     // The Python oracle agrees with every row, and notices one switch more in one trial.
     let check = |run: &str| {
@@ -167,10 +170,21 @@ fn compare_pairs_two_runs_and_recomputes_their_reported_figures() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("MISMATCH"));
     // Another seed met other traffic: nothing to pair.
-    let other = campaign(&dir, "other", "78", None);
+    let other = campaign(&dir, "configs.toml", "other", "78", None);
     let out = sim_client(&["compare", &base, &other]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("different seeds"), "{err}");
+    // The same seed and configuration ids, other traffic (more SVs): nothing to pair either.
+    std::fs::write(
+        dir.join("denser.toml"),
+        CONFIGS.replace("sv_count = 8", "sv_count = 12"),
+    )
+    .unwrap();
+    let denser = campaign(&dir, "denser.toml", "denser", "77", None);
+    let out = sim_client(&["compare", &base, &denser]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("other traffic"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
