@@ -20,7 +20,7 @@
 use iceoryx2_bb_loggers as _;
 
 // The modules from the leaves up (each uses only those before it): error, signature; enums;
-// serde_util; messages; codec; format, validate, names, signing, staleness; convert, answer.
+// serde_util; messages (and its outcome); codec; format, validate, names, signing, staleness; convert, answer.
 #[cfg(feature = "decision")]
 mod answer;
 mod codec;
@@ -31,6 +31,7 @@ mod error;
 mod format;
 mod messages;
 mod names;
+mod outcome;
 mod serde_util;
 mod signature;
 mod signing;
