@@ -38,6 +38,10 @@ CONTEXT_RANGE_M = 200.0  # perception.range_ahead_m; the request keeps 100 m beh
 SPEED_MODE_PLANNER = 0
 LANE_CHANGE_MODE_PLANNER = 0
 VEHICLE_ID = 1  # the request's vehicle_id
+# The mean speed is also given from this long after the ego's entry on: SUMO inserts the ego
+# at its largest safe speed, often at a short headway, and the first seconds are a driver's
+# answer to that insertion (the gap it opens), not its steady driving.
+SPEED_SPLIT_S = 20.0
 
 
 class BridgeError(Exception):
@@ -139,8 +143,12 @@ class LateralCheck:
         }
 
 
-def run_episode(scenario, driver, episode, net, routes, directory, link=None, gui=False):
-    """Runs one episode; returns its metrics (a dict) and writes SUMO's outputs to `directory`."""
+def run_episode(scenario, driver, episode, net, routes, directory, link=None, gui=False, speed_split_s=SPEED_SPLIT_S):
+    """Runs one episode; returns its metrics (a dict) and writes SUMO's outputs to `directory`.
+
+    Besides the mean speed of the whole episode, the mean speed from `speed_split_s` after the
+    ego's entry on (None when the episode ends before).
+    """
     os.makedirs(directory, exist_ok=True)
     seed = scenario.episode_seed(episode)
     _start(sumo_command(scenario, net, routes, seed, directory, gui))
@@ -154,7 +162,7 @@ def run_episode(scenario, driver, episode, net, routes, directory, link=None, gu
             traci.vehicle.setLaneChangeMode(EGO_ID, LANE_CHANGE_MODE_PLANNER)
         traci.vehicle.subscribeContext(EGO_ID, tc.CMD_GET_VEHICLE_VARIABLE, CONTEXT_RANGE_M, mapping.VEHICLE_VARIABLES)
         with open(trace_path, "w") as trace:
-            result = _drive(scenario, driver, link, trace)
+            result = _drive(scenario, driver, link, trace, speed_split_s)
     finally:
         traci.close()  # SUMO writes its SSM and collision outputs when it closes
     ssm = judge.parse_ssm(os.path.join(directory, "ssm.xml"), from_s=result["entry_s"] + judge.SETTLE_S)
@@ -177,7 +185,7 @@ def run_episode(scenario, driver, episode, net, routes, directory, link=None, gu
     return result
 
 
-def _drive(scenario, driver, link, trace):
+def _drive(scenario, driver, link, trace, speed_split_s):
     road = mapping.road(scenario.lanes, scenario.lane_width_m, scenario.speed_limit_mps)
     start_s = traci.simulation.getTime()
     end_s = start_s + scenario.duration_s
@@ -190,6 +198,7 @@ def _drive(scenario, driver, link, trace):
     memory = mapping.empty_memory()
     layers, round_trips = {}, []
     speed_sum, steps, lane_changes = 0.0, 0, 0
+    late_speed_sum, late_steps = 0.0, 0
     last_lane = ego[tc.VAR_LANE_INDEX]
     speed_errors, pending_target_speed = [], None
     sequence = 0
@@ -260,6 +269,9 @@ def _drive(scenario, driver, link, trace):
         if ego is None:
             raise BridgeError("the ego left the road before the episode's end")
         speed_sum += ego[tc.VAR_SPEED]
+        if now - start_s > speed_split_s + 1e-9:
+            late_speed_sum += ego[tc.VAR_SPEED]
+            late_steps += 1
         if ego[tc.VAR_LANE_INDEX] != last_lane:
             lane_changes += 1
             last_lane = ego[tc.VAR_LANE_INDEX]
@@ -272,6 +284,8 @@ def _drive(scenario, driver, link, trace):
         "steps": steps,
         "simulated_s": simulated,
         "mean_speed_mps": speed_sum / steps if steps else 0.0,
+        "speed_split_s": speed_split_s,
+        "mean_speed_after_split_mps": late_speed_sum / late_steps if late_steps else None,
         "lane_changes": lane_changes,
         "lane_changes_per_min": lane_changes / (simulated / 60.0) if simulated > 0 else 0.0,
         "collisions": len(collisions.ego_pairs),

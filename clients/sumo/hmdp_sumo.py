@@ -49,6 +49,12 @@ def parse_args(argv):
     p.add_argument("--planner-bin", metavar="PATH", help="planner binary for --spawn-planner (default: found in target/)")
     p.add_argument("--planner-config", metavar="FILE", help="--config for the spawned planner")
     p.add_argument("--planner-workers", type=int, default=1, help="--workers for the spawned planner (default 1)")
+    p.add_argument(
+        "--speed-split-s",
+        type=float,
+        default=control.SPEED_SPLIT_S,
+        help="also compare the mean speed from this long after the ego's entry on (default 20)",
+    )
     p.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each answer (default 2)")
     p.add_argument(
         "--planner-key",
@@ -69,6 +75,8 @@ def parse_args(argv):
         p.error("the planner driver needs --spawn-planner or --zenoh-connect")
     if args.episodes < 1:
         p.error("--episodes must be at least 1")
+    if not args.speed_split_s >= 0.0:
+        p.error("--speed-split-s must be a non-negative number")
     return args
 
 
@@ -107,7 +115,9 @@ def run(args, out_dir):
                 for episode in range(args.episodes):
                     started = time.monotonic()
                     ep_dir = os.path.join(s_dir, driver, f"episode-{episode:03d}")
-                    metrics = control.run_episode(s, driver, episode, net, routes, ep_dir, link=link, gui=args.gui)
+                    metrics = control.run_episode(
+                        s, driver, episode, net, routes, ep_dir, link=link, gui=args.gui, speed_split_s=args.speed_split_s
+                    )
                     metrics["wall_s"] = time.monotonic() - started
                     episodes[driver].append(metrics)
                     print(
@@ -123,10 +133,7 @@ def run(args, out_dir):
             }
             if "planner" in args.drivers and len(args.drivers) > 1:
                 labelled = {LABELS[d]: episodes[d] for d in args.drivers}
-                entry["paired_speed"] = {
-                    "subject": LABELS["planner"],
-                    "against": report.paired_speeds(labelled, LABELS["planner"]),
-                }
+                entry["paired_speed"] = report.paired_speed_entry(labelled, LABELS["planner"])
             results["scenarios"].append(entry)
     finally:
         if link:

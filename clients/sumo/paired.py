@@ -85,9 +85,11 @@ def paired_difference(a, b, confidence=0.95):
     }
 
 
-def describe(subject, driver, p):
-    """One line of the markdown report and of the command."""
-    line = f"Mean speed, {subject} minus {driver}, paired by seed: {p['mean']:+.2f} m/s"
+def describe(subject, driver, p, after_s=None):
+    """One line of the markdown report and of the command; `after_s`: of the speed from that
+    long after the ego's entry on."""
+    what = "Mean speed" if after_s is None else f"Mean speed from {after_s:g} s after entry on"
+    line = f"{what}, {subject} minus {driver}, paired by seed: {p['mean']:+.2f} m/s"
     if p["interval"] is not None:
         low, high = p["interval"]
         line += f" ({100 * p['confidence']:.0f} % interval {low:+.2f} to {high:+.2f})"
@@ -121,13 +123,21 @@ def main(argv=None):
             return 1
         for driver, eps in others.get(_key(scenario), {}).get("episode_metrics", {}).items():
             episodes.setdefault(driver, eps)
-        speeds = [e["mean_speed_mps"] for e in episodes[PLANNER]]
-        for driver, eps in episodes.items():
-            if driver == PLANNER:
+        where = f"{scenario['scenario']['name']}, seeds {scenario['scenario']['seed']}..: "
+        for key in ("mean_speed_mps", "mean_speed_after_split_mps"):
+            # Runs from before the split was recorded have no second line.
+            if any(e.get(key) is None for eps in episodes.values() for e in eps):
                 continue
-            p = paired_difference(speeds, [e["mean_speed_mps"] for e in eps])
-            where = f"{scenario['scenario']['name']}, seeds {scenario['scenario']['seed']}..: "
-            print(where + describe(PLANNER, driver, p))
+            speeds = [e[key] for e in episodes[PLANNER]]
+            after_s = None if key == "mean_speed_mps" else episodes[PLANNER][0]["speed_split_s"]
+            for driver, eps in episodes.items():
+                if driver == PLANNER:
+                    continue
+                if after_s is not None and any(e["speed_split_s"] != after_s for e in eps):
+                    print(f"{where}{driver}'s speeds are split at another time", file=sys.stderr)
+                    return 1
+                p = paired_difference(speeds, [e[key] for e in eps])
+                print(where + describe(PLANNER, driver, p, after_s=after_s))
     return 0
 
 

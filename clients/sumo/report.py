@@ -65,17 +65,31 @@ def summarise(episodes):
     }
 
 
-def paired_speeds(episodes_by_driver, subject):
+def paired_speeds(episodes_by_driver, subject, key="mean_speed_mps"):
     """Per-episode mean speed of `subject` minus each other driver's, paired by seed.
 
     Unweighted by the episodes' lengths, unlike the summary's mean speed: a pair is one seed.
+    `key` is the episode metric: `mean_speed_after_split_mps` for the speed after the entry's
+    first seconds; None when some episode has no such value (it ended before).
     """
-    a = [e["mean_speed_mps"] for e in episodes_by_driver[subject]]
+    if any(e.get(key) is None for episodes in episodes_by_driver.values() for e in episodes):
+        return None
+    a = [e[key] for e in episodes_by_driver[subject]]
     return {
-        driver: paired_difference(a, [e["mean_speed_mps"] for e in episodes])
+        driver: paired_difference(a, [e[key] for e in episodes])
         for driver, episodes in episodes_by_driver.items()
         if driver != subject
     }
+
+
+def paired_speed_entry(episodes_by_driver, subject):
+    """The JSON's `paired_speed`: over the whole episodes, and after the entry's first seconds."""
+    entry = {"subject": subject, "against": paired_speeds(episodes_by_driver, subject)}
+    after = paired_speeds(episodes_by_driver, subject, "mean_speed_after_split_mps")
+    if after is not None:
+        entry["split_s"] = next(iter(episodes_by_driver.values()))[0]["speed_split_s"]
+        entry["against_after_split"] = after
+    return entry
 
 
 def _fmt(x, digits=2, none="–"):
@@ -131,4 +145,6 @@ def markdown(results):
         if paired:
             for driver, p in paired["against"].items():
                 out.append(describe(paired["subject"], driver, p) + "\n")
+            for driver, p in paired.get("against_after_split", {}).items():
+                out.append(describe(paired["subject"], driver, p, after_s=paired["split_s"]) + "\n")
     return "\n".join(out)

@@ -7,7 +7,8 @@ interval's coverage on seeded normal samples.
 import random
 import unittest
 
-from paired import paired_difference, t_quantile
+from paired import describe, paired_difference, t_quantile
+from report import paired_speed_entry
 
 
 class StudentT(unittest.TestCase):
@@ -45,6 +46,35 @@ class PairedDifference(unittest.TestCase):
             low, high = paired_difference(a, b)["interval"]
             covered += low <= 0.3 <= high
         self.assertAlmostEqual(covered / trials, 0.95, delta=0.012)
+
+
+class SplitAtEntry(unittest.TestCase):
+    @staticmethod
+    def episode(whole, after):
+        return {"mean_speed_mps": whole, "mean_speed_after_split_mps": after, "speed_split_s": 20.0}
+
+    def test_the_speed_after_the_split_is_paired_on_its_own(self):
+        # Behind over the whole episodes (the entry), ahead after it: both reported, each paired.
+        runs = {
+            "planner": [self.episode(28.0, 29.5), self.episode(30.0, 31.0)],
+            "krauss": [self.episode(28.5, 29.0), self.episode(30.2, 30.5)],
+        }
+        entry = paired_speed_entry(runs, "planner")
+        self.assertAlmostEqual(entry["against"]["krauss"]["mean"], -0.35)
+        self.assertAlmostEqual(entry["against_after_split"]["krauss"]["mean"], 0.5)
+        self.assertEqual(entry["split_s"], 20.0)
+        self.assertEqual(entry["against_after_split"]["krauss"]["behind"], 0)
+        line = describe("planner", "krauss", entry["against_after_split"]["krauss"], after_s=entry["split_s"])
+        self.assertTrue(line.startswith("Mean speed from 20 s after entry on, planner minus krauss"), line)
+
+    def test_no_split_pairs_when_an_episode_ended_before_the_split(self):
+        runs = {
+            "planner": [self.episode(28.0, None), self.episode(30.0, 31.0)],
+            "krauss": [self.episode(28.5, 29.0), self.episode(30.2, 30.5)],
+        }
+        entry = paired_speed_entry(runs, "planner")
+        self.assertNotIn("against_after_split", entry)
+        self.assertAlmostEqual(entry["against"]["krauss"]["mean"], -0.35)
 
 
 if __name__ == "__main__":

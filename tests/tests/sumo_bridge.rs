@@ -35,6 +35,8 @@ const SETTLE_S: f64 = 5.0;
 /// SUMO writes its outputs with 2 decimals.
 const SUMO_ROUNDING: f64 = 0.006;
 const EPISODES: usize = 2;
+/// The bridge's `--speed-split-s` here: within the small scenario's 20 s episodes.
+const SPEED_SPLIT_S: f64 = 10.0;
 const LANES: u8 = 3;
 const LANE_WIDTH_M: f64 = 3.5;
 
@@ -245,6 +247,8 @@ fn the_planner_drives_a_sumo_vehicle_and_sumo_judges_it() {
             json_path.to_str().unwrap(),
             "--out-dir",
             out.to_str().unwrap(),
+            "--speed-split-s",
+            &SPEED_SPLIT_S.to_string(),
         ],
     );
     let planner_log = std::fs::read_to_string(out.join("planner.log")).unwrap_or_default();
@@ -258,6 +262,11 @@ fn the_planner_drives_a_sumo_vehicle_and_sumo_judges_it() {
         stdout.contains("| planner (HMDP-MPC) | 2 |"),
         "markdown table:\n{stdout}"
     );
+    assert!(
+        stdout.contains("Mean speed from 10 s after entry on, planner (HMDP-MPC) minus SUMO Krauss + LC2013"),
+        "the paired speed after the entry's first seconds:\n{stdout}"
+    );
+    assert_eq!(scenario["paired_speed"]["split_s"].as_f64(), Some(SPEED_SPLIT_S));
     let scenario_dir = out.join("test-small");
     let rightmost_y = rightmost_lane_y(&read(&scenario_dir.join("highway.net.xml")));
 
@@ -306,6 +315,17 @@ fn the_planner_drives_a_sumo_vehicle_and_sumo_judges_it() {
             assert!(
                 (mean - reported).abs() < SUMO_ROUNDING,
                 "{what}: mean speed {reported} vs SUMO's {mean}"
+            );
+            let late: Vec<f64> = trajectory
+                .range(tenth(entry + SPEED_SPLIT_S) + 1..=tenth(entry + simulated))
+                .map(|(_, s)| s.speed)
+                .collect();
+            let late_mean = late.iter().sum::<f64>() / late.len() as f64;
+            let reported = m["mean_speed_after_split_mps"].as_f64().unwrap();
+            assert!(
+                (late_mean - reported).abs() < SUMO_ROUNDING,
+                "{what}: mean speed after {SPEED_SPLIT_S} s {reported} vs SUMO's {late_mean} ({} steps)",
+                late.len()
             );
             let mut lanes: Vec<u8> = vec![trajectory[&tenth(entry)].sumo_lane];
             lanes.extend(episode.iter().map(|s| s.sumo_lane));
