@@ -288,7 +288,7 @@ fn infeasibility_cause(d: &[sim_client::episode::DecisionRecord], k: usize) -> S
                 .map(|sv| (sv.y_m - s.ego.y_m).abs() >= half_lane)
         })
         .collect();
-    let cut_in = seen.iter().any(|&beside| beside == Some(true));
+    let cut_in = seen.contains(&Some(true));
     let came_into_range = seen.iter().any(Option::is_none);
     let ego_changed = d[from.max(1).min(start)..=start]
         .windows(2)
