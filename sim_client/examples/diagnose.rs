@@ -18,6 +18,7 @@
 //! corrective mode for: an SV that cut in, the ego's own lane change, or an SV it closed in on,
 //! and how long since the trigger.
 use sim_client::campaign::{load_entries, paper_entries, scale_trials, trial_spec, CampaignSettings};
+use sim_client::diagnosis::infeasibility_cause;
 use sim_client::episode::{run_episode, run_episode_observed, Driver, StepObserver};
 use sim_client::link::InProcess;
 use sim_client::safety::{measure, Body};
@@ -65,9 +66,8 @@ fn main() -> anyhow::Result<()> {
             }
             if show_causes {
                 for k in (0..d.len()).filter(|&k| d[k].layer.is_some_and(|l| l != protocol::Layer::Nominal)) {
-                    *causes
-                        .entry(format!("{:?}: {}", d[k].layer.unwrap(), infeasibility_cause(d, k)))
-                        .or_default() += 1;
+                    let cause = infeasibility_cause(d, k).map_or("no request".to_string(), |c| c.to_string());
+                    *causes.entry(format!("{:?}: {cause}", d[k].layer.unwrap())).or_default() += 1;
                 }
             }
             let mut last_switch: Option<usize> = None;
@@ -242,72 +242,6 @@ fn main() -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-/// Decisions looked back over to find what made an SV corrective: a lane change takes 3 s.
-const LOOKBACK: usize = 8;
-
-/// What decision `k` was in corrective mode for: of the SVs corrective after it, the one
-/// triggered last, classed by how it came to be ahead within its trigger distance (the ego
-/// changed its target lane shortly before: "ego lane change"; an SV that was not in the ego's lane shortly before: "cut-in";
-/// one not sent shortly before: "came into range"; otherwise "closed in") and by the decisions
-/// since the trigger.
-fn infeasibility_cause(d: &[sim_client::episode::DecisionRecord], k: usize) -> String {
-    let situation = |i: usize| d[i].request.as_ref().map(protocol::PlanRequest::to_situation);
-    let Some(now) = situation(k) else {
-        return "no request".into();
-    };
-    let half_lane = now.road.lane_width_m / 2.0;
-    let ego_lane_change = d[k.saturating_sub(LOOKBACK).max(1).min(k)..=k]
-        .windows(2)
-        .any(|w| w[0].target_lane != w[1].target_lane);
-    let newest = d[k]
-        .corrective_sv_ids
-        .iter()
-        .map(|id| {
-            let mut start = k;
-            while start > 0 && d[start - 1].corrective_sv_ids.contains(id) {
-                start -= 1;
-            }
-            (start, *id)
-        })
-        .max();
-    let Some((start, id)) = newest else {
-        return format!(
-            "no SV corrective (other rows){}",
-            if ego_lane_change { ", ego lane change" } else { "" }
-        );
-    };
-    let from = start.saturating_sub(LOOKBACK);
-    let seen: Vec<Option<bool>> = (from..start)
-        .filter_map(situation)
-        .map(|s| {
-            s.svs
-                .iter()
-                .find(|sv| sv.id == id)
-                .map(|sv| (sv.y_m - s.ego.y_m).abs() >= half_lane)
-        })
-        .collect();
-    let cut_in = seen.contains(&Some(true));
-    let came_into_range = seen.iter().any(Option::is_none);
-    let ego_changed = d[from.max(1).min(start)..=start]
-        .windows(2)
-        .any(|w| w[0].target_lane != w[1].target_lane);
-    let class = if ego_changed {
-        "ego lane change"
-    } else if cut_in {
-        "cut-in"
-    } else if came_into_range {
-        "came into range"
-    } else {
-        "closed in"
-    };
-    let age = match k - start {
-        0..=2 => "trigger <= 0.8 s ago",
-        3..=7 => "trigger 1.2-2.8 s ago",
-        _ => "trigger >= 3.2 s ago",
-    };
-    format!("{class}, {age}")
 }
 
 /// Every recorded step with a vehicle within 8 m of the ego and less than 3 m beside it: the

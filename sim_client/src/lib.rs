@@ -17,6 +17,7 @@ pub mod campaign_compare;
 pub mod campaign_report;
 pub mod cases;
 pub mod connect;
+pub mod diagnosis;
 pub mod episode;
 pub mod error;
 mod inproc;
