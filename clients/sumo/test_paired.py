@@ -4,9 +4,15 @@ interval's coverage on seeded normal samples.
     python3 -m unittest discover -s clients/sumo -p 'test_*.py'
 """
 
+import contextlib
+import io
+import json
+import os
 import random
+import tempfile
 import unittest
 
+import paired
 from paired import describe, paired_difference, t_quantile
 from report import paired_speed_entry
 
@@ -75,6 +81,43 @@ class SplitAtEntry(unittest.TestCase):
         entry = paired_speed_entry(runs, "planner")
         self.assertNotIn("against_after_split", entry)
         self.assertAlmostEqual(entry["against"]["krauss"]["mean"], -0.35)
+
+
+class PairedCommand(unittest.TestCase):
+    @staticmethod
+    def results(driver, episodes):
+        scenario = {"name": "s", "seed": 1000}
+        return {"scenarios": [{"scenario": scenario, "episodes": len(episodes), "episode_metrics": {driver: episodes}}]}
+
+    def run_command(self, planner, baseline):
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = []
+            for name, doc in (("planner.json", planner), ("baseline.json", baseline)):
+                paths.append(os.path.join(tmp, name))
+                with open(paths[-1], "w") as f:
+                    json.dump(doc, f)
+            out, err = io.StringIO(), io.StringIO()
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                code = paired.main([paths[0], "--baseline", paths[1]])
+            return code, out.getvalue().splitlines(), err.getvalue()
+
+    def test_both_lines_against_another_runs_baseline(self):
+        planner = self.results(paired.PLANNER, [SplitAtEntry.episode(28.0, 29.5), SplitAtEntry.episode(30.0, 31.0)])
+        krauss = self.results("krauss", [SplitAtEntry.episode(28.5, 29.0), SplitAtEntry.episode(30.2, 30.5)])
+        code, lines, _ = self.run_command(planner, krauss)
+        self.assertEqual(code, 0)
+        self.assertEqual(len(lines), 2, lines)
+        self.assertIn("Mean speed, ", lines[0])
+        self.assertIn("-0.35 m/s", lines[0])
+        self.assertIn("Mean speed from 20 s after entry on", lines[1])
+        self.assertIn("+0.50 m/s", lines[1])
+
+    def test_a_baseline_split_at_another_time_is_refused(self):
+        planner = self.results(paired.PLANNER, [SplitAtEntry.episode(28.0, 29.5), SplitAtEntry.episode(30.0, 31.0)])
+        other = [dict(SplitAtEntry.episode(28.5, 29.0), speed_split_s=10.0), dict(SplitAtEntry.episode(30.2, 30.5), speed_split_s=10.0)]
+        code, _, err = self.run_command(planner, self.results("krauss", other))
+        self.assertEqual(code, 1)
+        self.assertIn("split at another time", err)
 
 
 if __name__ == "__main__":
