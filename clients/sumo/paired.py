@@ -96,6 +96,24 @@ def describe(subject, driver, p, after_s=None):
     return line + f"; ahead in {p['ahead']} of {p['pairs']} episodes, behind in {p['behind']}."
 
 
+def paired_speeds(episodes_by_driver, subject, key="mean_speed_mps"):
+    """Per-episode mean speed of `subject` minus each other driver's, paired by seed.
+
+    Unweighted by the episodes' lengths, unlike a summary's mean speed: a pair is one seed.
+    `key` is the episode metric: `mean_speed_after_split_mps` for the speed after the entry's
+    first seconds; None when some episode has no such value (it ended before, or the run is
+    from before the split was recorded).
+    """
+    if any(e.get(key) is None for episodes in episodes_by_driver.values() for e in episodes):
+        return None
+    a = [e[key] for e in episodes_by_driver[subject]]
+    return {
+        driver: paired_difference(a, [e[key] for e in episodes])
+        for driver, episodes in episodes_by_driver.items()
+        if driver != subject
+    }
+
+
 # The planner's label in the results (hmdp_sumo.py's LABELS).
 PLANNER = "planner (HMDP-MPC)"
 
@@ -124,19 +142,12 @@ def main(argv=None):
         for driver, eps in others.get(_key(scenario), {}).get("episode_metrics", {}).items():
             episodes.setdefault(driver, eps)
         where = f"{scenario['scenario']['name']}, seeds {scenario['scenario']['seed']}..: "
-        for key in ("mean_speed_mps", "mean_speed_after_split_mps"):
-            # Runs from before the split was recorded have no second line.
-            if any(e.get(key) is None for eps in episodes.values() for e in eps):
-                continue
-            speeds = [e[key] for e in episodes[PLANNER]]
-            after_s = None if key == "mean_speed_mps" else episodes[PLANNER][0]["speed_split_s"]
-            for driver, eps in episodes.items():
-                if driver == PLANNER:
-                    continue
-                if after_s is not None and any(e["speed_split_s"] != after_s for e in eps):
-                    print(f"{where}{driver}'s speeds are split at another time", file=sys.stderr)
-                    return 1
-                p = paired_difference(speeds, [e[key] for e in eps])
+        splits = {e["speed_split_s"] for eps in episodes.values() for e in eps if "speed_split_s" in e}
+        if len(splits) > 1:
+            print(f"{where}the runs' speeds are split at different times: {sorted(splits)}", file=sys.stderr)
+            return 1
+        for key, after_s in (("mean_speed_mps", None), ("mean_speed_after_split_mps", next(iter(splits), None))):
+            for driver, p in (paired_speeds(episodes, PLANNER, key) or {}).items():
                 print(where + describe(PLANNER, driver, p, after_s=after_s))
     return 0
 

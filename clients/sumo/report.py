@@ -3,7 +3,7 @@
 import math
 
 from judge import SSM_DRAC_LOGGED_ABOVE_MPS2, SSM_TTC_LOGGED_BELOW_S
-from paired import describe, paired_difference
+from paired import describe, paired_speeds
 
 LAYERS = ("nominal", "global_relaxation", "fallback", "watchdog_fallback")
 
@@ -62,23 +62,6 @@ def summarise(episodes):
         "lane_changes_applied": sum(x["applied"] for x in lateral) if lateral else None,
         "lane_changes_not_applied": sum(len(x["not_applied"]) for x in lateral) if lateral else None,
         "max_speed_error_mps": _max(e["max_speed_error_mps"] for e in episodes),
-    }
-
-
-def paired_speeds(episodes_by_driver, subject, key="mean_speed_mps"):
-    """Per-episode mean speed of `subject` minus each other driver's, paired by seed.
-
-    Unweighted by the episodes' lengths, unlike the summary's mean speed: a pair is one seed.
-    `key` is the episode metric: `mean_speed_after_split_mps` for the speed after the entry's
-    first seconds; None when some episode has no such value (it ended before).
-    """
-    if any(e.get(key) is None for episodes in episodes_by_driver.values() for e in episodes):
-        return None
-    a = [e[key] for e in episodes_by_driver[subject]]
-    return {
-        driver: paired_difference(a, [e[key] for e in episodes])
-        for driver, episodes in episodes_by_driver.items()
-        if driver != subject
     }
 
 

@@ -117,7 +117,7 @@ class PairedCommand(unittest.TestCase):
         other = [dict(SplitAtEntry.episode(28.5, 29.0), speed_split_s=10.0), dict(SplitAtEntry.episode(30.2, 30.5), speed_split_s=10.0)]
         code, _, err = self.run_command(planner, self.results("krauss", other))
         self.assertEqual(code, 1)
-        self.assertIn("split at another time", err)
+        self.assertIn("split at different times", err)
 
 
 if __name__ == "__main__":

@@ -58,9 +58,8 @@ impl fmt::Display for Cause {
 /// it corrective starts at its trigger). Needs the decisions' requests
 /// (`EpisodeSpec::record_trajectory`); `None` without them.
 pub fn infeasibility_cause(d: &[DecisionRecord], k: usize) -> Option<Cause> {
-    let situation = |i: usize| d[i].request.as_ref().map(protocol::PlanRequest::to_situation);
-    let now = situation(k)?;
-    let half_lane = now.road.lane_width_m / 2.0;
+    let request = |i: usize| d[i].request.as_ref();
+    let half_lane = request(k)?.road.lane_width_m / 2.0;
     let lane_changed = |from: usize, to: usize| (from.max(1)..=to).any(|i| d[i].target_lane != d[i - 1].target_lane);
     let newest = d[k]
         .corrective_sv_ids
@@ -82,12 +81,12 @@ pub fn infeasibility_cause(d: &[DecisionRecord], k: usize) -> Option<Cause> {
     let from = start.saturating_sub(LOOKBACK_DECISIONS);
     // Before the trigger: was the SV sent, and was it beside the ego's lane?
     let seen: Vec<Option<bool>> = (from..start)
-        .filter_map(situation)
-        .map(|s| {
-            s.svs
+        .filter_map(request)
+        .map(|r| {
+            r.svs
                 .iter()
                 .find(|sv| sv.id == id)
-                .map(|sv| (sv.y_m - s.ego.y_m).abs() >= half_lane)
+                .map(|sv| (sv.y_m - r.ego.y_m).abs() >= half_lane)
         })
         .collect();
     let class = if lane_changed(from, start) {
