@@ -16,7 +16,8 @@
 //! measures took for the ego's leader and follower (its lateral offset shows a lane change counted in both lanes);
 //! `SHOW_CAUSES=1` what the decisions the nominal MPC could not answer (Layer A or B) were in
 //! corrective mode for: an SV that cut in, the ego's own lane change, or an SV it closed in on,
-//! and how long since the trigger.
+//! and how long since the trigger. `SV_KEEP_LONG=P` and `SV_LANE_CHANGE=P` set the SVs' random
+//! maneuver switches (as `campaign --sv-keep-long`, `--sv-lane-change`).
 use sim_client::campaign::{load_entries, paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::diagnosis::infeasibility_cause;
 use sim_client::episode::{run_episode, run_episode_observed, Driver, StepObserver};
@@ -36,6 +37,13 @@ fn main() -> anyhow::Result<()> {
     if let Some(path) = args.get(3) {
         settings.planner = decision::PlannerConfig::from_toml_str(&std::fs::read_to_string(path)?)?;
     }
+    if let Ok(p) = std::env::var("SV_KEEP_LONG") {
+        settings.params.sv.p_keep_long = p.parse()?;
+    }
+    if let Ok(p) = std::env::var("SV_LANE_CHANGE") {
+        settings.params.sv.p_random_lane_change = p.parse()?;
+    }
+    settings.params.validate()?;
     let mut switches: BTreeMap<String, u64> = BTreeMap::new();
     let mut brakes: BTreeMap<String, u64> = BTreeMap::new();
     let mut minutes = 0.0;

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use decision::PlannerConfig;
 use serde::{Deserialize, Serialize};
-use traffic::{Scenario, SimParams, TrafficConfig};
+use traffic::{Scenario, SimParams, SvBehaviour, TrafficConfig};
 
 use crate::episode::{run_episode, Driver, EpisodeSpec, HardBrakingDecision};
 use crate::error::{Result, SimClientError};
@@ -311,6 +311,10 @@ pub struct CampaignResults {
     pub seed: u64,
     /// Episode duration (s).
     pub duration_s: f64,
+    /// How the SVs drove: their random maneuver switches (the rest of the simulator's
+    /// parameters are its defaults).
+    #[serde(default)]
+    pub sv: SvBehaviour,
     /// Configurations run.
     pub entries: Vec<CampaignEntry>,
     /// Drivers run, in report order.
@@ -349,8 +353,12 @@ pub struct TrialRecord {
     pub dt_s: f64,
     /// The episode's duration (s).
     pub duration_s: f64,
-    /// The configuration's traffic: with the seed, what makes two runs' trial the same.
+    /// The configuration's traffic: with the seed and `sv`, what makes two runs' trial the
+    /// same.
     pub traffic: TrafficConfig,
+    /// How the SVs drove (their random maneuver switches).
+    #[serde(default)]
+    pub sv: SvBehaviour,
     /// The trial's reproducible metrics.
     pub metrics: EpisodeMetrics,
 }
@@ -501,12 +509,14 @@ pub fn run_campaign(settings: &CampaignSettings, on_episode: &(dyn Fn() + Sync))
                 .find(|e| e.id == o.config_id)
                 .expect("every outcome is of a configuration run")
                 .traffic,
+            sv: settings.params.sv,
             metrics: o.metrics.clone(),
         })
         .collect();
     Ok(CampaignResults {
         seed: settings.seed,
         duration_s: settings.duration_s,
+        sv: settings.params.sv,
         entries: settings.entries.clone(),
         drivers,
         groups,

@@ -286,7 +286,7 @@ fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], drivers: (DriverKin
                 key.0, key.1
             )));
         }
-        if rb.traffic != rc.traffic || rb.duration_s != rc.duration_s {
+        if rb.traffic != rc.traffic || rb.sv != rc.sv || rb.duration_s != rc.duration_s {
             return Err(SimClientError::Config(format!(
                 "configuration {} has other traffic or another duration in the two runs: compare runs of the same configurations",
                 key.0

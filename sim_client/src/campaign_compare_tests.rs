@@ -1,7 +1,7 @@
 use super::*;
 use crate::metrics::{CollisionSplit, EpisodeMetrics, LayerCounts, NominalSplit};
 use crate::safety::SafetySummary;
-use traffic::TrafficConfig;
+use traffic::{SvBehaviour, TrafficConfig};
 
 /// A trial of 30 s (750 steps of 0.04 s) with the given speed, beta switches and least TTC.
 fn trial(config_id: u32, trial: u32, speed: f64, switches: u32, min_ttc: Option<f64>) -> TrialRecord {
@@ -16,6 +16,7 @@ fn trial(config_id: u32, trial: u32, speed: f64, switches: u32, min_ttc: Option<
             lanes: 1 + config_id as u8,
             ..TrafficConfig::default()
         },
+        sv: SvBehaviour::default(),
         metrics: EpisodeMetrics {
             decisions: 75,
             decisions_by_layer: LayerCounts::default(),
@@ -173,6 +174,11 @@ fn runs_of_other_trials_or_seeds_are_refused() {
         1,
     )
     .unwrap_err();
+    assert!(err.to_string().contains("other traffic"), "{err}");
+    // The same configurations with calmer SVs are other traffic too.
+    let mut calmer = base.clone();
+    calmer.iter_mut().for_each(|r| r.sv = SvBehaviour::deterministic());
+    let err = compare(&base, &calmer, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).unwrap_err();
     assert!(err.to_string().contains("other traffic"), "{err}");
     let mut longer = base.clone();
     longer[0].duration_s = 60.0;

@@ -193,12 +193,16 @@ pub fn campaign_markdown(r: &CampaignResults) -> String {
     let _ = writeln!(s, "# Case 3: randomized campaign\n");
     let _ = writeln!(
         s,
-        "Seed {}, episodes of {} s, {} configuration(s), wall time {:.1} s on {} thread(s).\n",
+        "Seed {}, episodes of {} s, {} configuration(s), wall time {:.1} s on {} thread(s). \
+         SVs keep their longitudinal maneuver with probability {} and try a random lane change \
+         with probability {} per decision instant.\n",
         r.seed,
         r.duration_s,
         r.entries.len(),
         r.wall_time_s,
-        r.threads
+        r.threads,
+        r.sv.p_keep_long,
+        r.sv.p_random_lane_change,
     );
     let _ = writeln!(
         s,

@@ -13,6 +13,7 @@ use sim_client::episode::StepObserver;
 use sim_client::live::{LiveTrial, Pace};
 use sim_client::record::{TrialInfo, SCENE_TOPIC};
 use sim_client::{cases, recorded, report, Transport};
+use traffic::SvBehaviour;
 
 use super::{print_files, Common, TransportKind};
 
@@ -97,6 +98,15 @@ pub struct CampaignArgs {
     paper_literal: bool,
     #[command(flatten)]
     paper: PaperArgs,
+    /// Probability that an SV keeps its longitudinal maneuver at each decision instant
+    /// (0.4 s); otherwise it switches at random, as its HMDP allows (formulation.md: 0.8).
+    /// 1: SVs change speed only as their IDM asks (docs/paper-literal.md, "calmer traffic").
+    #[arg(long, value_name = "P", default_value_t = SvBehaviour::default().p_keep_long)]
+    sv_keep_long: f64,
+    /// Probability that an SV tries a random lane change at each decision instant, besides
+    /// MOBIL's (0: MOBIL's only).
+    #[arg(long, value_name = "P", default_value_t = SvBehaviour::default().p_random_lane_change)]
+    sv_lane_change: f64,
     /// Record the first `--record-trials` trials of every configuration, for every driver,
     /// into this directory (`config03-trial0-planner.mcap`, ...; docs/recording.md). They are
     /// run again after the campaign with the same seeds.
@@ -122,6 +132,8 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         baselines,
         paper_literal,
         paper,
+        sv_keep_long,
+        sv_lane_change,
         record,
         record_trials,
         trace_hard_braking,
@@ -131,6 +143,12 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         // A planner process has one configuration; the no-hysteresis baseline needs another.
         anyhow::bail!("with a remote transport, run the campaign with --baselines false");
     }
+    let sv = SvBehaviour {
+        p_keep_long: *sv_keep_long,
+        p_random_lane_change: *sv_lane_change,
+        ..SvBehaviour::default()
+    };
+    sv.validate()?;
     let (transport, _planner) = common.open(None)?;
     let entries = match &config {
         Some(p) => campaign::load_entries(p)?,
@@ -150,6 +168,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
     };
     settings.transport = transport;
     settings.trace_hard_braking = *trace_hard_braking;
+    settings.params.sv = sv;
     let bar = if std::io::stderr().is_terminal() {
         ProgressBar::new(settings.episode_count() as u64)
     } else {

@@ -6,6 +6,7 @@ use sim_client::campaign::{
 use sim_client::campaign_compare::{compare, read_trials, Verdict};
 use sim_client::presets::paper_literal;
 use sim_client::report::{campaign_csv, campaign_markdown, write_campaign};
+use traffic::SvBehaviour;
 
 const TINY: &str = r#"
 [[config]]
@@ -244,4 +245,46 @@ fn markdown_has_all_paper_rows() {
     }
     assert!(md.contains("**Overall**") && md.contains("98.77%") && md.contains("8050"));
     assert!(md.contains("## Baselines and safety"));
+}
+
+#[test]
+fn the_svs_behaviour_reaches_the_traffic_and_is_recorded() {
+    let entries = parse_entries(TINY, false).unwrap();
+    let run = |sv: SvBehaviour| {
+        let mut s = CampaignSettings::new(entries.clone(), 9, 2);
+        s.duration_s = 12.0;
+        s.baselines = false;
+        s.params.sv = sv;
+        run_campaign(&s, &|| {}).unwrap()
+    };
+    let random = run(SvBehaviour::default());
+    let calm = run(SvBehaviour::deterministic());
+    for (r, sv) in [(&random, SvBehaviour::default()), (&calm, SvBehaviour::deterministic())] {
+        assert_eq!(r.sv, sv);
+        assert!(r.trials.iter().all(|t| t.sv == sv));
+        assert!(campaign_markdown(r).contains(&format!(
+            "keep their longitudinal maneuver with probability {}",
+            sv.p_keep_long
+        )));
+    }
+    // Same seeds, other SV behaviour: the trials are not those of the default traffic.
+    assert_eq!(random.trials.len(), calm.trials.len());
+    let differ = random
+        .trials
+        .iter()
+        .zip(&calm.trials)
+        .filter(|(a, b)| a.metrics != b.metrics)
+        .count();
+    assert!(differ > 0, "calm SVs changed no trial");
+    // A probability outside [0, 1] is refused before anything runs, naming the parameter.
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim_client"))
+        .args(["campaign", "--sv-keep-long", "1.5", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("sv.p_keep_long") && err.contains("[0, 1]"), "{err}");
+    assert!(!dir.path().join("campaign").exists());
 }

@@ -24,6 +24,13 @@ impl Default for SvBehaviour {
 }
 
 impl SvBehaviour {
+    /// Rejects probabilities outside `[0, 1]` and a non-positive slowdown.
+    pub fn validate(&self) -> Result<(), SimError> {
+        probability("sv.p_keep_long", self.p_keep_long)?;
+        probability("sv.p_random_lane_change", self.p_random_lane_change)?;
+        positive("sv.gentle_decel", self.gentle_decel)
+    }
+
     /// No random switches: SVs are pure IDM + MOBIL drivers (Case-1 style scenes).
     pub fn deterministic() -> Self {
         SvBehaviour {
@@ -142,9 +149,6 @@ impl SimParams {
                 reason: "politeness and threshold must be finite",
             });
         }
-        probability("sv.p_keep_long", self.sv.p_keep_long)?;
-        probability("sv.p_random_lane_change", self.sv.p_random_lane_change)?;
-        positive("sv.gentle_decel", self.sv.gentle_decel)?;
-        Ok(())
+        self.sv.validate()
     }
 }
