@@ -77,6 +77,7 @@ class Scenario:
     ego_lane: int = 2  # protocol numbering: 1 = leftmost
     ego_depart_pos_m: float = 300.0  # front of the ego at entry, from the road's start
     ego_desired_speed_mps: float = 33.33
+    ego_accel_mps2: float = 2.6  # SUMO's egos' maximum acceleration (SUMO's default); the planner's is its own
     traffic: tuple = DEFAULT_TRAFFIC
 
     def episode_seed(self, episode):
@@ -113,6 +114,8 @@ def check_scenario(s):
     reach = s.ego_depart_pos_m + s.duration_s * max(s.speed_limit_mps, s.ego_desired_speed_mps) * 1.1
     if reach + 200.0 > s.length_m:
         raise ValueError(f"length_m {s.length_m} too short for a {s.duration_s} s episode (needs {reach + 200.0:.0f})")
+    if not s.ego_accel_mps2 > 0.0:
+        raise ValueError(f"ego_accel_mps2 must be positive, got {s.ego_accel_mps2}")
     if abs(sum(t.share for t in s.traffic) - 1.0) > 1e-6:
         raise ValueError("traffic shares must sum to 1")
 
@@ -174,6 +177,7 @@ def ego_vtype(scenario, driver):
         # planner's: its desired speed goes into the request, and SUMO must not cap its commands.
         max_speed_mps=55.0 if driver == "planner" else scenario.ego_desired_speed_mps,
         speed_factor="1",
+        accel_mps2=scenario.ego_accel_mps2,
     )
 
 
