@@ -6,9 +6,10 @@ use crate::types::CorrectiveEntry;
 /// New corrective state of one SV ahead in the ego's lane (`None` in both gaps when it no
 /// longer is, which releases it).
 ///
-/// `min_gap` is the smallest predicted gap over the horizon and the SV's kept branches on the
-/// ego's nominal rollout (keep lane and `beta`); `min_gap_resuming` the same on the rollout
-/// where the ego resumes accelerating.
+/// `min_gap` is the smallest gap over the horizon between the SV's mean prediction (the paper's
+/// `mu_Delta`, probability-weighted over its kept branches) and the ego's nominal rollout (keep
+/// lane and `beta`); `min_gap_resuming` the same on the rollout where the ego resumes
+/// accelerating.
 ///
 /// Trigger when some nominal gap falls below the *current* trigger distance (thresholds are
 /// frozen at that moment; a re-trigger keeps the original freeze). Release when every gap
