@@ -36,7 +36,7 @@ class ScenarioFileTest(unittest.TestCase):
         self.assertEqual(float(ego_vtype_attributes(self.load("lanes = 2\n"), "krauss")["accel"]), 2.6)
 
     def test_a_non_positive_acceleration_is_refused(self):
-        with self.assertRaisesRegex(ValueError, "ego_accel_mps2"):
+        with self.assertRaisesRegex(ValueError, "ego_accel_mps2 must be positive"):
             self.load("ego_accel_mps2 = 0.0\n")
 
     def test_every_shipped_scenario_loads(self):

@@ -286,7 +286,13 @@ fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], drivers: (DriverKin
                 key.0, key.1
             )));
         }
-        if rb.traffic != rc.traffic || rb.sv != rc.sv || rb.duration_s != rc.duration_s {
+        if rb.sv != rc.sv {
+            return Err(SimClientError::Config(format!(
+                "configuration {}: the SVs drove otherwise in the two runs (keep probability {} / {}, random lane changes {} / {}): compare runs of the same --sv-keep-long and --sv-lane-change",
+                key.0, rb.sv.p_keep_long, rc.sv.p_keep_long, rb.sv.p_random_lane_change, rc.sv.p_random_lane_change
+            )));
+        }
+        if rb.traffic != rc.traffic || rb.duration_s != rc.duration_s {
             return Err(SimClientError::Config(format!(
                 "configuration {} has other traffic or another duration in the two runs: compare runs of the same configurations",
                 key.0

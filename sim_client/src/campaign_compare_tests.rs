@@ -179,7 +179,7 @@ fn runs_of_other_trials_or_seeds_are_refused() {
     let mut calmer = base.clone();
     calmer.iter_mut().for_each(|r| r.sv = SvBehaviour::deterministic());
     let err = compare(&base, &calmer, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).unwrap_err();
-    assert!(err.to_string().contains("other traffic"), "{err}");
+    assert!(err.to_string().contains("the SVs drove otherwise"), "{err}");
     let mut longer = base.clone();
     longer[0].duration_s = 60.0;
     assert!(compare(&base, &longer, (DriverKind::Planner, DriverKind::Planner), 10, 0.95, 1).is_err());
@@ -228,4 +228,19 @@ fn two_drivers_of_one_run_are_each_aggregated_as_what_they_are() {
         assert_eq!((f.baseline, f.verdict), (None, Verdict::Undefined), "{name}");
     }
     assert!(comparison_table(&cmp).starts_with("planner against idm_mobil:"));
+}
+
+#[test]
+fn a_trial_written_before_the_sv_behaviour_was_recorded_reads_as_the_default() {
+    let mut line = serde_json::to_value(trial(1, 0, 25.0, 3, Some(4.0))).unwrap();
+    line.as_object_mut()
+        .unwrap()
+        .remove("sv")
+        .expect("the record has the field");
+    let read: TrialRecord = serde_json::from_value(line).unwrap();
+    assert_eq!(read.sv, SvBehaviour::default());
+    let mut calm = trial(1, 0, 25.0, 3, Some(4.0));
+    calm.sv = SvBehaviour::deterministic();
+    let round_trip: TrialRecord = serde_json::from_str(&serde_json::to_string(&calm).unwrap()).unwrap();
+    assert_eq!(round_trip.sv, SvBehaviour::deterministic());
 }

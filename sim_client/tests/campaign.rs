@@ -276,15 +276,56 @@ fn the_svs_behaviour_reaches_the_traffic_and_is_recorded() {
         .filter(|(a, b)| a.metrics != b.metrics)
         .count();
     assert!(differ > 0, "calm SVs changed no trial");
-    // A probability outside [0, 1] is refused before anything runs, naming the parameter.
+    // The command line: the values reach the run and its files.
     let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim_client"))
-        .args(["campaign", "--sv-keep-long", "1.5", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let config = dir.path().join("tiny.toml");
+    std::fs::write(&config, TINY).unwrap();
+    let sim_client = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_sim_client"))
+            .arg("campaign")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out_dir = dir.path().join("calm");
+    let ran = sim_client(&[
+        "--config",
+        config.to_str().unwrap(),
+        "--seed",
+        "9",
+        "--threads",
+        "1",
+        "--baselines",
+        "false",
+        "--sv-keep-long",
+        "1",
+        "--sv-lane-change",
+        "0",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(ran.status.success(), "{}", String::from_utf8_lossy(&ran.stderr));
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("campaign/results.json")).unwrap()).unwrap();
+    assert_eq!(
+        results["sv"],
+        serde_json::to_value(SvBehaviour::deterministic()).unwrap()
+    );
+    let trials = read_trials(&out_dir).unwrap();
+    assert_eq!(trials.len(), 6);
+    assert!(trials.iter().all(|t| t.sv == SvBehaviour::deterministic()));
+    // A probability outside [0, 1] is refused before anything is opened: with a Zenoh transport
+    // and no router to reach, a valid value fails on the missing endpoint instead.
+    let remote = ["--transport", "zenoh", "--baselines", "false"];
+    let refused = sim_client(&[&remote[..], &["--sv-keep-long", "1.5"]].concat());
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
     assert!(err.contains("sv.p_keep_long") && err.contains("[0, 1]"), "{err}");
-    assert!(!dir.path().join("campaign").exists());
+    let unreachable = sim_client(&remote);
+    assert!(!unreachable.status.success());
+    let err = String::from_utf8_lossy(&unreachable.stderr);
+    assert!(
+        err.contains("--zenoh-connect") && !err.contains("sv.p_keep_long"),
+        "{err}"
+    );
 }
