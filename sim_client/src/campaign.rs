@@ -311,8 +311,7 @@ pub struct CampaignResults {
     pub seed: u64,
     /// Episode duration (s).
     pub duration_s: f64,
-    /// How the SVs drove: their random maneuver switches (the rest of the simulator's
-    /// parameters are its defaults).
+    /// How the SVs drove: their random maneuver switches (`settings.params.sv`).
     #[serde(default)]
     pub sv: SvBehaviour,
     /// Configurations run.

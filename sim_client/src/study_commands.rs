@@ -100,7 +100,8 @@ pub struct CampaignArgs {
     paper: PaperArgs,
     /// Probability that an SV keeps its longitudinal maneuver at each decision instant
     /// (0.4 s); otherwise it switches at random, as its HMDP allows (formulation.md: 0.8).
-    /// 1: SVs change speed only as their IDM asks (docs/paper-literal.md, "The band against the rest, and calmer traffic").
+    /// 1: SVs change speed only as their IDM asks (docs/paper-literal.md, "The band against
+    /// the rest, and calmer traffic").
     #[arg(long, value_name = "P", default_value_t = SvBehaviour::default().p_keep_long)]
     sv_keep_long: f64,
     /// Probability that an SV tries a random lane change at each decision instant, besides
