@@ -1,6 +1,8 @@
 """Tests of hmdp_ros2_client.py: the JSON <-> message conversion, the CDR bytes against a
-hand-built encoding, and every subcommand against mock_planner.py over real DDS (a random
-ROS_DOMAIN_ID in 100..200, discovery on localhost only).
+hand-built encoding, and every subcommand against mock_planner.py over real DDS (discovery
+on localhost only). The mock's domain is ROS_DOMAIN_ID and the one no planner is on
+HMDP_TEST_EMPTY_DOMAIN, as the system tests reserve them; run alone, a random domain in
+100..200 and its neighbour.
 
     VENV/bin/python -m unittest discover -s clients/ros2
 """
@@ -418,7 +420,7 @@ class WithMockPlannerTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls) -> None:
-        cls.domain = random.randint(100, 200)
+        cls.domain = int(os.environ.get("ROS_DOMAIN_ID") or random.randint(100, 200))
         cls.logs = tempfile.TemporaryDirectory()
         cls.mock_stderr = open(Path(cls.logs.name) / "mock_planner.stderr", "w")  # noqa: SIM115
         cls.mock = subprocess.Popen(
@@ -551,7 +553,8 @@ class WithMockPlannerTest(unittest.TestCase):
         self.assertIn("broken.mcap", report["error"])
 
     def test_no_planner(self) -> None:
-        empty = self.domain + 1 if self.domain < 200 else self.domain - 1
+        # A domain other tests running at the same time do not use (the harness reserves one).
+        empty = int(os.environ.get("HMDP_TEST_EMPTY_DOMAIN") or self.domain + 1)
         code, report = self.run_client("reject", "--discovery-timeout", "1", domain=empty)
         self.assertEqual(code, 2)
         self.assertIn("not available", report["error"])

@@ -32,6 +32,11 @@ impl Domain {
         Self(100 + ((std::process::id() as u16 % 16) * 8 + slot) % 131)
     }
 
+    /// The domain's id.
+    pub fn id(&self) -> u16 {
+        self.0
+    }
+
     /// The environment every ROS 2 process of the test gets.
     pub fn env(&self) -> [(&'static str, String); 3] {
         [

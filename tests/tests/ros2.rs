@@ -227,9 +227,12 @@ fn rclpy_receives_the_decisions_and_the_markers() {
 #[test]
 fn the_rclpy_tool_passes_its_own_tests() {
     let domain = Domain::new(5);
+    // The no-planner case needs a domain no other test's planner is on: reserve one too.
+    let empty = Domain::new(6);
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../clients/ros2");
     let out = domain
         .command(venv().join("bin/python"))
+        .env("HMDP_TEST_EMPTY_DOMAIN", empty.id().to_string())
         .args(["-m", "unittest", "discover", "-s"])
         .arg(&dir)
         .output()
