@@ -86,6 +86,11 @@ pub struct EgoModel {
     pub continuous_accel: bool,
     /// Strongest braking the ego may plan, m/s^2 (with `continuous_accel`).
     pub max_decel_mps2: f64,
+    /// Strongest braking the fallback commands, m/s^2: the vehicle's emergency braking, used
+    /// only when an SV ahead needs more than the state's range of `beta = -1` to stay behind
+    /// (Layer B's "front vehicle braking"). The MPC never plans it. Set it to what the vehicle
+    /// can brake; at the range's lower end the fallback brakes no harder than the MPC may.
+    pub emergency_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_firm_brake`, m/s^2: with a cost that
@@ -110,6 +115,7 @@ impl Default for EgoModel {
             accel_mps2: 1.5,
             continuous_accel: true,
             max_decel_mps2: -6.0,
+            emergency_decel_mps2: -9.0,
             comfort_decel_mps2: -2.0,
             firm_decel_mps2: -1.0,
             cruise_band_mps2: 0.3,

@@ -177,17 +177,28 @@ pub fn choose(
     }
 }
 
-/// The fallback's acceleration: the state's representative one, braking harder (down to the
-/// range of `beta = -1`) when the front threat needs it, and as hard as the choice says (within
-/// that range) for an SV inside its band.
-pub fn acceleration(kin: &Kinematics, choice: &FallbackChoice) -> f64 {
+/// The fallback's acceleration: the state's representative one, braking harder when the front
+/// threat needs it (beyond the range of `beta = -1`, down to `emergency_decel_mps2`: staying
+/// behind an SV ahead is what the vehicle's brakes are for, and stopping short at the planned
+/// range would be a collision chosen), and as hard as the choice says (within that range) for
+/// an SV inside its band.
+pub fn acceleration(kin: &Kinematics, choice: &FallbackChoice, emergency_decel_mps2: f64) -> f64 {
     let (lo, hi) = kin.bounds_of(choice.beta);
     let nominal = kin.accel_of(choice.beta).clamp(lo, hi);
     match choice.threat {
-        Threat::Front => nominal.min(choice.needed_decel_mps2).clamp(lo, hi),
+        Threat::Front => nominal
+            .min(choice.needed_decel_mps2)
+            .clamp(emergency_decel_mps2.min(lo), hi),
         Threat::Band => choice.needed_decel_mps2.clamp(lo, hi),
         _ => nominal,
     }
+}
+
+/// Whether `choice` is an SV ahead that only braking beyond the MPC's range (`beta = -1`'s)
+/// keeps the ego behind, with the vehicle able to brake harder (`emergency_decel_mps2`).
+pub fn needs_emergency_braking(config: &PlannerConfig, kin: &Kinematics, choice: &FallbackChoice) -> bool {
+    let planned = kin.bounds_of(-1).0;
+    choice.threat == Threat::Front && choice.needed_decel_mps2 < planned && config.ego.emergency_decel_mps2 < planned
 }
 
 /// The fallback's target lane: the current one (a lane change under way completes), unless
@@ -274,6 +285,40 @@ mod tests {
     }
 
     #[test]
+    fn a_front_threat_beyond_the_planned_range_gets_the_emergency_braking_it_needs() {
+        let c = PlannerConfig::default();
+        let kin = Kinematics::new(&c);
+        // Gap 24 m, the ego at 26 m/s and the SV at 8 m/s: keeping the 2 m jam distance takes
+        // 18^2 / (2 * 22) = 7.36 m/s^2, beyond the planned -6.
+        let s = |gap_m: f64, v_sv: f64| {
+            let mut s = situation(vec![sv(1, 100.0 + gap_m + c.vehicle.length_m, 4.0, v_sv)]);
+            s.ego.v_mps = 26.0;
+            s
+        };
+        let f = choose(&c, &s(24.0, 8.0), LaneSet::single(2), &[]);
+        assert_eq!(f.threat, Threat::Front);
+        let needed = -(18.0_f64.powi(2)) / (2.0 * 22.0);
+        assert!((f.needed_decel_mps2 - needed).abs() < 1e-9, "{f:?}");
+        assert!((acceleration(&kin, &f, c.ego.emergency_decel_mps2) - needed).abs() < 1e-9);
+        // Needing more than the vehicle has: all of it.
+        let f = choose(&c, &s(8.0, 0.0), LaneSet::single(2), &[]);
+        assert_eq!(
+            acceleration(&kin, &f, c.ego.emergency_decel_mps2),
+            c.ego.emergency_decel_mps2
+        );
+        // With the emergency braking at the planned range's end, no harder than the MPC may.
+        assert_eq!(acceleration(&kin, &f, c.ego.max_decel_mps2), c.ego.max_decel_mps2);
+        // Within the planned range it is what is needed, whatever the emergency braking.
+        let f = choose(&c, &s(60.0, 14.0), LaneSet::single(2), &[]);
+        assert_eq!(f.threat, Threat::Front);
+        let a = acceleration(&kin, &f, c.ego.emergency_decel_mps2);
+        assert!(
+            a > c.ego.max_decel_mps2 && a == f.needed_decel_mps2.min(kin.accel_of(-1)),
+            "{a} {f:?}"
+        );
+    }
+
+    #[test]
     fn rear_closing_faster_accelerates() {
         let c = PlannerConfig::default();
         // Front: gap 45, closing 1 -> 45 s. Rear: gap 10, closing 10 -> 1 s.
@@ -315,10 +360,16 @@ mod tests {
         // Comfortable braking where the state allows it; the state's one deceleration where
         // it is fixed (the paper-literal preset).
         let kin = Kinematics::new(&c);
-        assert_eq!(acceleration(&kin, &f), c.ego.comfort_decel_mps2);
+        assert_eq!(
+            acceleration(&kin, &f, c.ego.emergency_decel_mps2),
+            c.ego.comfort_decel_mps2
+        );
         let mut fixed = c.clone();
         fixed.ego.continuous_accel = false;
-        assert_eq!(acceleration(&Kinematics::new(&fixed), &f), fixed.ego.decel_mps2);
+        assert_eq!(
+            acceleration(&Kinematics::new(&fixed), &f, fixed.ego.emergency_decel_mps2),
+            fixed.ego.decel_mps2
+        );
         // Beyond the trigger distance the band's slack reaches: no threat.
         assert_eq!(choose(&c, &s, LaneSet::single(2), &[entry(30.0)]).threat, Threat::None);
         // With the soft band, following inside the trigger distance is no threat at all (a

@@ -84,6 +84,20 @@ impl Planner {
             corrective_svs: prepared.memory.corrective.len(),
             ..SolveStats::new(self.config.solver.backend)
         };
+        // An SV ahead that only braking beyond the MPC's range keeps the ego behind: no plan
+        // the MPC can make is safe, and the time a solve takes is braking lost. Layer B brakes
+        // as hard as needed at once (docs/formulation-notes.md, "The fallback").
+        let threat = fallback::choose(
+            &self.config,
+            situation,
+            problem.ego.occupancy,
+            &prepared.memory.corrective,
+        );
+        if fallback::needs_emergency_braking(&self.config, &problem.kin, &threat) {
+            let mut d = fallback_decision(&self.config, situation, problem, stats, prepared.memory.clone());
+            d.stats.total_us = started.elapsed().as_micros() as u64;
+            return Ok(d);
+        }
         let warm = self.warm_candidates(situation);
         let solve_started = Instant::now();
         let mut layer = Layer::Nominal;
@@ -207,7 +221,7 @@ pub(crate) fn fallback_decision(
         lateral: (i16::from(next.lane) - i16::from(start.lane)).signum() as i8,
         longitudinal: (choice.beta - start.beta).clamp(-1, 1),
     };
-    let accel = fallback::acceleration(&problem.kin, &choice);
+    let accel = fallback::acceleration(&problem.kin, &choice, config.ego.emergency_decel_mps2);
     let (mut x, mut v) = (situation.ego.x_m, situation.ego.v_mps);
     let mut occupancy = problem.ego.occupancy;
     let plan: Vec<PlanStep> = (0..config.timing.horizon)

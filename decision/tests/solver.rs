@@ -75,6 +75,13 @@ fn invalid_configs_are_rejected() {
         ("[idm]\nmax_accel_mps2 = 0.0\n", "idm.max_accel_mps2"),
         ("[idm]\nmax_accel_mps2 = inf\n", "idm.max_accel_mps2"),
         ("[idm]\njam_distance_m = -1.0\n", "idm.jam_distance_m"),
+        // The fallback's emergency braking is at least the strongest planned one.
+        ("[ego]\nemergency_decel_mps2 = -5.0\n", "ego.emergency_decel_mps2"),
+        (
+            "[ego]\ncontinuous_accel = false\nemergency_decel_mps2 = -2.0\n",
+            "ego.emergency_decel_mps2",
+        ),
+        ("[ego]\nemergency_decel_mps2 = -inf\n", "ego.emergency_decel_mps2"),
     ] {
         match PlannerConfig::from_toml_str(text) {
             Err(ConfigError::Invalid { field, .. }) => assert_eq!(field, name, "{text}"),

@@ -100,6 +100,17 @@ impl PlannerConfig {
                 "need max_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
             );
         }
+        let strongest_state_braking = if e.continuous_accel {
+            e.max_decel_mps2
+        } else {
+            e.decel_mps2
+        };
+        if !(e.emergency_decel_mps2.is_finite() && e.emergency_decel_mps2 <= strongest_state_braking) {
+            return bad(
+                "ego.emergency_decel_mps2",
+                "must be finite and at most the strongest braking of beta = -1 (max_decel with continuous_accel, decel without)",
+            );
+        }
         let idm = &self.idm;
         // The dynamic term divides by sqrt(a b): zero or a negative would make every margin
         // infinite or NaN.

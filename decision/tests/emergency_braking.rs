@@ -1,0 +1,91 @@
+//! An SV ahead that only braking beyond the MPC's range (`ego.max_decel_mps2`) keeps the ego
+//! behind: the ego placed fast behind a slow vehicle, as a randomized scene can place it. The
+//! fallback then brakes as hard as needed, down to the vehicle's emergency braking
+//! (`ego.emergency_decel_mps2`), at once and without a solve; stopping at the planned range
+//! is a collision.
+
+mod common;
+
+use common::{ClosedLoop, Vehicle};
+use decision::{Layer, PlannerConfig};
+
+/// The ego at 30 m/s, 32 m (bumpers) behind a vehicle holding 8 m/s: keeping the jam distance
+/// takes 22^2 / (2 * 30) = 8.07 m/s^2, beyond the planned 6.
+fn fast_behind_slow(config: PlannerConfig) -> common::Trace {
+    ClosedLoop {
+        config,
+        lanes: 1,
+        desired_speed_mps: 30.0,
+        ego_v_mps: 30.0,
+        vehicles: vec![Vehicle::steady(32.0 + common::LENGTH_M, 8.0)],
+        duration_s: 8.0,
+    }
+    .run()
+}
+
+#[test]
+fn the_fallback_brakes_beyond_the_planned_range_when_staying_behind_takes_it() {
+    let c = PlannerConfig::default();
+    assert!(c.ego.emergency_decel_mps2 < -8.1 && c.ego.max_decel_mps2 > -8.0);
+    let trace = fast_behind_slow(c.clone());
+    let first = &trace.decisions[0];
+    assert_eq!(first.layer, Layer::Fallback, "no plan within the MPC's range is safe");
+    let needed = -(22.0_f64.powi(2)) / (2.0 * 30.0);
+    assert!((first.accel_mps2 - needed).abs() < 1e-9, "braking {}", first.accel_mps2);
+    assert!(trace.least_gap_m > 0.0, "least gap {}", trace.least_gap_m);
+    // Behind it at its speed, the nominal MPC answers again.
+    assert!(trace.decisions.iter().any(|d| d.layer == Layer::Nominal));
+    assert!(trace.strongest_braking() >= c.ego.emergency_decel_mps2);
+
+    // The same with the emergency braking at the planned range's end: a collision.
+    let mut planned_only = c.clone();
+    planned_only.ego.emergency_decel_mps2 = c.ego.max_decel_mps2;
+    let trace = fast_behind_slow(planned_only);
+    assert!(trace.strongest_braking() >= c.ego.max_decel_mps2);
+    assert!(trace.least_gap_m < 0.0, "least gap {}", trace.least_gap_m);
+}
+
+#[test]
+fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
+    // Without hysteresis the nominal MPC has a plan here: an SV already inside its margin may
+    // stay inside for a while (`idm.violation_decay`), and within its 1.2 s horizon braking at
+    // -6 m/s^2 looks enough. It is not: 23.3^2 / (2 * 36.8) = 7.38 m/s^2 keeps the jam
+    // distance, and the MPC's plan would end in a collision beyond its horizon (least gap
+    // -2.3 m without this check).
+    let mut c = PlannerConfig::default();
+    c.hysteresis.enabled = false;
+    let trace = ClosedLoop {
+        config: c,
+        lanes: 1,
+        desired_speed_mps: 30.0,
+        ego_v_mps: 33.0,
+        vehicles: vec![Vehicle::steady(38.8 + common::LENGTH_M, 9.7)],
+        duration_s: 8.0,
+    }
+    .run();
+    assert_eq!(trace.decisions[0].layer, Layer::Fallback);
+    assert!(
+        trace.decisions[0].accel_mps2 < -7.0,
+        "braking {}",
+        trace.decisions[0].accel_mps2
+    );
+    assert!(trace.least_gap_m > 1.5, "least gap {}", trace.least_gap_m);
+}
+
+#[test]
+fn within_the_planned_range_the_mpc_decides() {
+    // 60 m behind at 30 m/s: 22^2 / (2 * 58) = 4.2 m/s^2 keeps the jam distance, within the
+    // MPC's range: no emergency, and the MPC (nominal or relaxed) answers the first decision.
+    let trace = ClosedLoop {
+        config: PlannerConfig::default(),
+        lanes: 1,
+        desired_speed_mps: 30.0,
+        ego_v_mps: 30.0,
+        vehicles: vec![Vehicle::steady(60.0 + common::LENGTH_M, 8.0)],
+        duration_s: 8.0,
+    }
+    .run();
+    assert_ne!(trace.decisions[0].layer, Layer::Fallback);
+    assert!(trace.strongest_braking() >= PlannerConfig::default().ego.max_decel_mps2);
+    assert!(trace.least_gap_m > 0.0, "least gap {}", trace.least_gap_m);
+}
