@@ -88,8 +88,11 @@ pub struct EgoModel {
     pub max_decel_mps2: f64,
     /// Strongest braking the fallback commands, m/s^2: the vehicle's emergency braking, used
     /// only when an SV ahead needs more than the state's range of `beta = -1` to stay behind
-    /// (Layer B's "front vehicle braking"). The MPC never plans it. Set it to what the vehicle
-    /// can brake; at the range's lower end the fallback brakes no harder than the MPC may.
+    /// (Layer B's "front vehicle braking"); the MPC is then not asked. The MPC never plans
+    /// it. Set it to what the vehicle can brake; at the range's lower end (`max_decel_mps2`,
+    /// or `decel_mps2` without `continuous_accel`) the fallback brakes no harder than the MPC
+    /// may. Without `continuous_accel` the range is the one deceleration, so below it any SV
+    /// ahead that needs more than that deceleration is an emergency.
     pub emergency_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,

@@ -14,10 +14,13 @@ pub struct FallbackChoice {
     pub threat: Threat,
     /// Id of the most critical SV, if any.
     pub sv_id: Option<u32>,
+    /// Id of the front threat that needs the most braking, when another than `sv_id`.
+    pub hardest_sv_id: Option<u32>,
     /// Its time to collision, s (infinite when not closing).
     pub ttc_s: f64,
-    /// Braking the threat asks for, m/s^2: to keep the jam distance behind a `Front` threat,
-    /// the comfortable braking for a `Band` one, 0 otherwise.
+    /// Braking the threat asks for, m/s^2: to keep the jam distance behind every `Front`
+    /// threat (the one that needs the most, which need not be `sv_id`), the comfortable
+    /// braking for a `Band` one, 0 otherwise.
     pub needed_decel_mps2: f64,
 }
 
@@ -82,6 +85,10 @@ pub fn choose(
     let tol = config.vehicle.lane_centre_tolerance_m;
     let braking_ends = BrakingEnds::new(config, s);
     let mut front: Option<Candidate> = None;
+    // The braking the hardest front threat needs: during a lane change the SV with the
+    // smallest TTC (which decides) need not be the one that takes the most braking.
+    let mut hardest_stop = 0.0_f64;
+    let mut hardest_id = None;
     let mut rear: Option<Candidate> = None;
     let mut band: Option<Candidate> = None;
     let mut lateral: Option<u32> = None;
@@ -107,6 +114,9 @@ pub fn choose(
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
                 let inside_band =
                     !config.hysteresis.soft_band && corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
+                if threat && c.stopping > hardest_stop {
+                    (hardest_stop, hardest_id) = (c.stopping, Some(c.id));
+                }
                 if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
                 } else if !threat && inside_band && band.as_ref().is_none_or(|b| c.more_critical(b)) {
@@ -136,12 +146,14 @@ pub fn choose(
     }
     if let Some(f) = front {
         // The needed deceleration behind a leader not braking is the one that stops the
-        // closing within the gap beyond the jam distance.
-        let needed = -f.stopping;
+        // closing within the gap beyond the jam distance; behind every front threat, the
+        // largest of these.
+        let needed = -hardest_stop.max(f.stopping);
         return FallbackChoice {
             beta: -1,
             threat: Threat::Front,
             sv_id: Some(f.id),
+            hardest_sv_id: hardest_id.filter(|&id| id != f.id && hardest_stop > f.stopping),
             ttc_s: f.ttc(),
             needed_decel_mps2: needed,
         };
@@ -151,6 +163,7 @@ pub fn choose(
             beta: 1,
             threat: Threat::Rear,
             sv_id: Some(r.id),
+            hardest_sv_id: None,
             ttc_s: r.ttc(),
             needed_decel_mps2: 0.0,
         };
@@ -160,6 +173,7 @@ pub fn choose(
             beta: -1,
             threat: Threat::Band,
             sv_id: Some(b.id),
+            hardest_sv_id: None,
             ttc_s: b.ttc(),
             needed_decel_mps2: config.ego.comfort_decel_mps2,
         };
@@ -172,6 +186,7 @@ pub fn choose(
             Threat::None
         },
         sv_id: lateral,
+        hardest_sv_id: None,
         ttc_s: f64::INFINITY,
         needed_decel_mps2: 0.0,
     }
@@ -202,10 +217,11 @@ pub fn needs_emergency_braking(config: &PlannerConfig, kin: &Kinematics, choice:
 }
 
 /// The fallback's target lane: the current one (a lane change under way completes), unless
-/// the threat occupies that target lane and the ego's body is still in a lane the threat does
-/// not occupy — then the change is aborted back to that lane. Completing a change into the
-/// lane of the SV the fallback is reacting to is how two vehicles merging into the same lane
-/// from both sides collide.
+/// the threat (the most critical, or the front threat that needs the most braking) occupies
+/// that target lane and the ego's body is still in a lane that threat does not occupy — then
+/// the change is aborted back to that lane. Completing a change into the lane of the SV the
+/// fallback is reacting to is how two vehicles merging into the same lane from both sides
+/// collide.
 pub fn lateral_target(config: &PlannerConfig, s: &Situation, choice: &FallbackChoice) -> u8 {
     let target = s.ego.maneuver.lane;
     let tol = config.vehicle.lane_centre_tolerance_m;
@@ -213,18 +229,24 @@ pub fn lateral_target(config: &PlannerConfig, s: &Situation, choice: &FallbackCh
     if choice.threat == Threat::Band {
         return target;
     }
-    let Some(sv) = choice.sv_id.and_then(|id| s.svs.iter().find(|sv| sv.id == id)) else {
+    let Ok(body) = lanes_at(&s.road, s.ego.y_m, tol) else {
         return target;
     };
-    let (Ok(threat), Ok(body)) = (lanes_at(&s.road, sv.y_m, tol), lanes_at(&s.road, s.ego.y_m, tol)) else {
-        return target;
-    };
-    if !threat.contains(target) {
-        return target;
+    for id in [choice.sv_id, choice.hardest_sv_id].into_iter().flatten() {
+        let Some(sv) = s.svs.iter().find(|sv| sv.id == id) else {
+            continue;
+        };
+        let Ok(threat) = lanes_at(&s.road, sv.y_m, tol) else {
+            continue;
+        };
+        if !threat.contains(target) {
+            continue;
+        }
+        if let Some(back) = body.iter().find(|&l| l != target && !threat.contains(l)) {
+            return back;
+        }
     }
-    body.iter()
-        .find(|&l| l != target && !threat.contains(l))
-        .unwrap_or(target)
+    target
 }
 
 #[cfg(test)]
@@ -308,13 +330,42 @@ mod tests {
         );
         // With the emergency braking at the planned range's end, no harder than the MPC may.
         assert_eq!(acceleration(&kin, &f, c.ego.max_decel_mps2), c.ego.max_decel_mps2);
-        // Within the planned range it is what is needed, whatever the emergency braking.
-        let f = choose(&c, &s(60.0, 14.0), LaneSet::single(2), &[]);
+        // Within the planned range it is what is needed, whatever the emergency braking: 18 m
+        // behind an SV at 14 m/s, 12^2 / (2 * 16) = 4.5 m/s^2.
+        let f = choose(&c, &s(18.0, 14.0), LaneSet::single(2), &[]);
         assert_eq!(f.threat, Threat::Front);
+        assert!(!needs_emergency_braking(&c, &kin, &f));
         let a = acceleration(&kin, &f, c.ego.emergency_decel_mps2);
+        assert!((a + 4.5).abs() < 1e-9, "{a} {f:?}");
+    }
+
+    #[test]
+    fn the_braking_is_for_the_front_threat_that_needs_the_most() {
+        let c = PlannerConfig::default();
+        let kin = Kinematics::new(&c);
+        // Changing from lane 3 into lane 2 (y = 0.05, both lanes occupied). In lane 3, 15 m
+        // ahead and closing at 5 m/s: TTC 3 s, 25 / 26 = 0.96 m/s^2 keeps the jam distance.
+        // In lane 2, 40 m ahead and closing at 13 m/s: TTC 3.1 s, 169 / 76 = 2.2 m/s^2.
+        let mut s = situation(vec![
+            sv(1, 100.0 + 15.0 + c.vehicle.length_m, 0.0, 15.0),
+            sv(2, 100.0 + 40.0 + c.vehicle.length_m, 4.0, 7.0),
+        ]);
+        s.ego.y_m = 0.05;
+        let f = choose(&c, &s, LaneSet::single(2).with(3), &[]);
+        assert_eq!((f.threat, f.sv_id), (Threat::Front, Some(1)));
+        assert!((f.needed_decel_mps2 + 169.0 / 76.0).abs() < 1e-9, "{f:?}");
+        assert!((acceleration(&kin, &f, c.ego.emergency_decel_mps2) - kin.accel_of(-1)).abs() < 1e-12);
+        assert_eq!(f.hardest_sv_id, Some(2));
+        // The ego heads for lane 2, where the SV that needs the most braking is: the change is
+        // aborted back to lane 3, although the most critical SV is in lane 3.
+        s.ego.maneuver.lane = 2;
+        assert_eq!(lateral_target(&c, &s, &f), 3);
+        // 10 m closer, lane 2's SV needs 169 / 56 = 3.02 m/s^2, more than the state's 3.
+        s.svs[1].x_m -= 10.0;
+        let f = choose(&c, &s, LaneSet::single(2).with(3), &[]);
         assert!(
-            a > c.ego.max_decel_mps2 && a == f.needed_decel_mps2.min(kin.accel_of(-1)),
-            "{a} {f:?}"
+            (acceleration(&kin, &f, c.ego.emergency_decel_mps2) + 169.0 / 56.0).abs() < 1e-9,
+            "{f:?}"
         );
     }
 

@@ -68,7 +68,9 @@ impl Planner {
 
     /// Decide on a situation validated against this planner's configuration: refresh
     /// hysteresis, build the problem, solve the nominal MPC, then Layer A if it is
-    /// infeasible, then Layer B if that is infeasible too. Fails only when the solver does.
+    /// infeasible, then Layer B if that is infeasible too. An SV ahead that needs braking
+    /// beyond the MPC's range goes to Layer B at once (`SolveStats::emergency`). Fails only
+    /// when the solver does.
     pub fn decide_valid(&mut self, situation: &ValidSituation) -> Result<Decision, DecisionError> {
         self.decide_from(situation, Instant::now())
     }
@@ -85,8 +87,9 @@ impl Planner {
             ..SolveStats::new(self.config.solver.backend)
         };
         // An SV ahead that only braking beyond the MPC's range keeps the ego behind: no plan
-        // the MPC can make is safe, and the time a solve takes is braking lost. Layer B brakes
-        // as hard as needed at once (docs/formulation-notes.md, "The fallback").
+        // the MPC can make keeps it behind that SV, and the time a solve takes is braking
+        // lost. Layer B brakes as hard as needed at once, in its lane as the paper's Layer B
+        // does (docs/emergency-braking.md).
         let threat = fallback::choose(
             &self.config,
             situation,
@@ -94,6 +97,7 @@ impl Planner {
             &prepared.memory.corrective,
         );
         if fallback::needs_emergency_braking(&self.config, &problem.kin, &threat) {
+            stats.emergency = true;
             let mut d = fallback_decision(&self.config, situation, problem, stats, prepared.memory.clone());
             d.stats.total_us = started.elapsed().as_micros() as u64;
             return Ok(d);

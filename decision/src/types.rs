@@ -204,6 +204,9 @@ pub struct SolveStats {
     pub interrupted: bool,
     /// Threat the fallback reacted to (`None` unless the fallback answered).
     pub fallback_threat: Option<Threat>,
+    /// The MPC was not asked: an SV ahead needed braking beyond its range, and the fallback
+    /// braked at once (docs/emergency-braking.md).
+    pub emergency: bool,
 }
 
 impl SolveStats {
@@ -226,6 +229,7 @@ impl SolveStats {
             warm_start: false,
             interrupted: false,
             fallback_threat: None,
+            emergency: false,
         }
     }
 }

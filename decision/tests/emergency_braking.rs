@@ -7,7 +7,31 @@
 mod common;
 
 use common::{ClosedLoop, Vehicle};
-use decision::{Layer, PlannerConfig};
+use decision::{
+    EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation, Threat,
+};
+
+/// The first decision's statistics, the ego at `v` m/s `gap` m (bumpers) behind an SV holding
+/// `v_sv` on a one-lane road.
+fn first_stats(config: PlannerConfig, v: f64, gap: f64, v_sv: f64) -> decision::SolveStats {
+    let s = Situation {
+        road: Road {
+            lanes: 1,
+            lane_width_m: 3.5,
+            speed_limit_mps: 33.33,
+        },
+        ego: EgoState {
+            x_m: 0.0,
+            y_m: 0.0,
+            v_mps: v,
+            desired_speed_mps: 30.0,
+            maneuver: Maneuver { lane: 1, beta: 0 },
+        },
+        svs: vec![SvObservation::new(1, gap + common::LENGTH_M, 0.0, v_sv, 0.0)],
+        memory: PlannerMemory::default(),
+    };
+    Planner::new(config).unwrap().decide(&s).unwrap().stats
+}
 
 /// The ego at 30 m/s, 32 m (bumpers) behind a vehicle holding 8 m/s: keeping the jam distance
 /// takes 22^2 / (2 * 30) = 8.07 m/s^2, beyond the planned 6.
@@ -41,7 +65,7 @@ fn the_fallback_brakes_beyond_the_planned_range_when_staying_behind_takes_it() {
     let mut planned_only = c.clone();
     planned_only.ego.emergency_decel_mps2 = c.ego.max_decel_mps2;
     let trace = fast_behind_slow(planned_only);
-    assert!(trace.strongest_braking() >= c.ego.max_decel_mps2);
+    assert!(trace.strongest_braking() >= c.ego.max_decel_mps2 - 1e-6);
     assert!(trace.least_gap_m < 0.0, "least gap {}", trace.least_gap_m);
 }
 
@@ -70,6 +94,13 @@ fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
         trace.decisions[0].accel_mps2
     );
     assert!(trace.least_gap_m > 1.5, "least gap {}", trace.least_gap_m);
+    // The decision says why: an emergency behind an SV ahead, nothing solved.
+    let mut c = PlannerConfig::default();
+    c.hysteresis.enabled = false;
+    let stats = first_stats(c, 33.0, 38.8, 9.7);
+    assert!(stats.emergency);
+    assert_eq!(stats.fallback_threat, Some(Threat::Front));
+    assert_eq!((stats.rows, stats.nodes, stats.sequences), (0, 0, 0));
 }
 
 #[test]
@@ -86,6 +117,7 @@ fn within_the_planned_range_the_mpc_decides() {
     }
     .run();
     assert_ne!(trace.decisions[0].layer, Layer::Fallback);
-    assert!(trace.strongest_braking() >= PlannerConfig::default().ego.max_decel_mps2);
+    assert!(trace.strongest_braking() >= PlannerConfig::default().ego.max_decel_mps2 - 1e-6);
+    assert!(!first_stats(PlannerConfig::default(), 30.0, 60.0, 8.0).emergency);
     assert!(trace.least_gap_m > 0.0, "least gap {}", trace.least_gap_m);
 }
