@@ -86,9 +86,10 @@ impl Planner {
             corrective_svs: prepared.memory.corrective.len(),
             ..SolveStats::new(self.config.solver.backend)
         };
-        // An SV ahead that only braking beyond the MPC's range keeps the ego behind: no plan
-        // the MPC can make keeps it behind that SV, and the time a solve takes is braking
-        // lost. Layer B brakes as hard as needed at once, in its lane as the paper's Layer B
+        // Layer B's choice, made once: it answers if both layers fail, and it decides now
+        // whether an SV ahead only braking beyond the MPC's range keeps the ego behind. Then no
+        // plan the MPC can make keeps it behind that SV, and the time a solve takes is braking
+        // lost: Layer B brakes as hard as needed at once, in its lane as the paper's Layer B
         // does (docs/emergency-braking.md).
         let threat = fallback::choose(
             &self.config,
@@ -98,7 +99,14 @@ impl Planner {
         );
         if fallback::needs_emergency_braking(&self.config, &problem.kin, &threat) {
             stats.emergency = true;
-            let mut d = fallback_decision(&self.config, situation, problem, stats, prepared.memory.clone());
+            let mut d = fallback_decision(
+                &self.config,
+                situation,
+                problem,
+                &threat,
+                stats,
+                prepared.memory.clone(),
+            );
             d.stats.total_us = started.elapsed().as_micros() as u64;
             return Ok(d);
         }
@@ -137,7 +145,7 @@ impl Planner {
                     memory,
                 }
             }
-            None => fallback_decision(&self.config, situation, problem, stats, memory),
+            None => fallback_decision(&self.config, situation, problem, &threat, stats, memory),
         };
         let mut decision = decision;
         decision.stats.total_us = started.elapsed().as_micros() as u64;
@@ -202,15 +210,17 @@ fn setpoint_of(problem: &Problem, first: &PlanStep) -> SetPoint {
     }
 }
 
-/// Layer B's decision: keep the target lane, set `beta` from the most critical threat.
+/// Layer B's decision: keep the target lane, set `beta` from the most critical threat
+/// (`choice`, [`fallback::choose`] on this situation and its refreshed memory).
 pub(crate) fn fallback_decision(
     config: &PlannerConfig,
     situation: &Situation,
     problem: &Problem,
+    choice: &fallback::FallbackChoice,
     mut stats: SolveStats,
     mut memory: crate::types::PlannerMemory,
 ) -> Decision {
-    let choice = fallback::choose(config, situation, problem.ego.occupancy, &memory.corrective);
+    let choice = *choice;
     stats.fallback_threat = Some(choice.threat);
     memory.previous_plan.clear();
     let start = situation.ego.maneuver;
@@ -269,7 +279,20 @@ pub fn fallback_only(config: &PlannerConfig, situation: &ValidSituation) -> Deci
         interrupted: true,
         ..SolveStats::new(config.solver.backend)
     };
-    let mut d = fallback_decision(config, situation, &prepared.problem, stats, prepared.memory.clone());
+    let choice = fallback::choose(
+        config,
+        situation,
+        prepared.problem.ego.occupancy,
+        &prepared.memory.corrective,
+    );
+    let mut d = fallback_decision(
+        config,
+        situation,
+        &prepared.problem,
+        &choice,
+        stats,
+        prepared.memory.clone(),
+    );
     d.stats.total_us = started.elapsed().as_micros() as u64;
     d
 }

@@ -33,18 +33,24 @@ fn first_stats(config: PlannerConfig, v: f64, gap: f64, v_sv: f64) -> decision::
     Planner::new(config).unwrap().decide(&s).unwrap().stats
 }
 
-/// The ego at 30 m/s, 32 m (bumpers) behind a vehicle holding 8 m/s: keeping the jam distance
-/// takes 22^2 / (2 * 30) = 8.07 m/s^2, beyond the planned 6.
-fn fast_behind_slow(config: PlannerConfig) -> common::Trace {
+/// 8 s of closed loop on one lane: the ego at `v` m/s, `gap` m (bumpers) behind a vehicle
+/// holding `v_sv`.
+fn behind(config: PlannerConfig, v: f64, gap: f64, v_sv: f64) -> common::Trace {
     ClosedLoop {
         config,
         lanes: 1,
         desired_speed_mps: 30.0,
-        ego_v_mps: 30.0,
-        vehicles: vec![Vehicle::steady(32.0 + common::LENGTH_M, 8.0)],
+        ego_v_mps: v,
+        vehicles: vec![Vehicle::steady(gap + common::LENGTH_M, v_sv)],
         duration_s: 8.0,
     }
     .run()
+}
+
+/// The ego at 30 m/s, 32 m behind a vehicle holding 8 m/s: keeping the jam distance takes
+/// 22^2 / (2 * 30) = 8.07 m/s^2, beyond the planned 6.
+fn fast_behind_slow(config: PlannerConfig) -> common::Trace {
+    behind(config, 30.0, 32.0, 8.0)
 }
 
 #[test]
@@ -78,15 +84,7 @@ fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
     // -2.3 m without this check).
     let mut c = PlannerConfig::default();
     c.hysteresis.enabled = false;
-    let trace = ClosedLoop {
-        config: c,
-        lanes: 1,
-        desired_speed_mps: 30.0,
-        ego_v_mps: 33.0,
-        vehicles: vec![Vehicle::steady(38.8 + common::LENGTH_M, 9.7)],
-        duration_s: 8.0,
-    }
-    .run();
+    let trace = behind(c.clone(), 33.0, 38.8, 9.7);
     assert_eq!(trace.decisions[0].layer, Layer::Fallback);
     assert!(
         trace.decisions[0].accel_mps2 < -7.0,
@@ -95,8 +93,6 @@ fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
     );
     assert!(trace.least_gap_m > 1.5, "least gap {}", trace.least_gap_m);
     // The decision says why: an emergency behind an SV ahead, nothing solved.
-    let mut c = PlannerConfig::default();
-    c.hysteresis.enabled = false;
     let stats = first_stats(c, 33.0, 38.8, 9.7);
     assert!(stats.emergency);
     assert_eq!(stats.fallback_threat, Some(Threat::Front));
@@ -107,15 +103,7 @@ fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
 fn within_the_planned_range_the_mpc_decides() {
     // 60 m behind at 30 m/s: 22^2 / (2 * 58) = 4.2 m/s^2 keeps the jam distance, within the
     // MPC's range: no emergency, and the MPC (nominal or relaxed) answers the first decision.
-    let trace = ClosedLoop {
-        config: PlannerConfig::default(),
-        lanes: 1,
-        desired_speed_mps: 30.0,
-        ego_v_mps: 30.0,
-        vehicles: vec![Vehicle::steady(60.0 + common::LENGTH_M, 8.0)],
-        duration_s: 8.0,
-    }
-    .run();
+    let trace = behind(PlannerConfig::default(), 30.0, 60.0, 8.0);
     assert_ne!(trace.decisions[0].layer, Layer::Fallback);
     assert!(trace.strongest_braking() >= PlannerConfig::default().ego.max_decel_mps2 - 1e-6);
     assert!(!first_stats(PlannerConfig::default(), 30.0, 60.0, 8.0).emergency);
