@@ -1,11 +1,13 @@
-//! Why a situation ends in the fallback: which SVs make the nominal problem and Layer A
-//! infeasible on their own (the exact oracle solved with one SV at a time).
+//! Why a situation ends in the fallback: an emergency (an SV ahead that only braking beyond
+//! the MPC's range keeps the ego behind, docs/emergency-braking.md), or which SVs make the
+//! nominal problem and Layer A infeasible on their own (the exact oracle solved with one SV
+//! at a time).
 //!
 //! `cargo run --release -p decision --example explain_fallback -- SITUATION.json... [--config F]`
 //! (situations as `sim_client/examples/diagnose.rs` writes them with `DUMP_FALLBACK`).
 use decision::prepare;
 use decision::Mode;
-use decision::{PlannerConfig, Situation};
+use decision::{Planner, PlannerConfig, Situation};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,6 +25,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "{path}: ego x {:.1} y {:.1} v {:.2} {:?}, occupancy {:?}",
             ego.x_m, ego.y_m, ego.v_mps, ego.maneuver, problem.ego.occupancy
         );
+        // Emergencies are answered before the MPC is asked: the layers' costs do not apply.
+        let decided = Planner::new(config.clone())?.decide(&situation)?;
+        if decided.stats.emergency {
+            let threat = decided
+                .stats
+                .fallback_threat
+                .map_or_else(|| "no".to_string(), |t| format!("{t:?}").to_lowercase());
+            println!(
+                "  emergency: Layer B brakes at {:.2} m/s^2 without asking the MPC ({threat} threat)",
+                decided.setpoint.accel_mps2
+            );
+            continue;
+        }
         for mode in [Mode::Nominal, Mode::Relaxed] {
             let (best, count) = decision::solve_by_enumeration(&problem, mode);
             println!(

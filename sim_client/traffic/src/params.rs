@@ -52,7 +52,7 @@ pub struct SimParams {
     pub lane_change_duration: f64,
     /// Shortest commanded ego lateral manoeuvre (s).
     pub min_lane_change_duration: f64,
-    /// Ego jerk bound (m/s^3).
+    /// Ego jerk bound (m/s^3), whatever drives the ego.
     pub jerk_max: f64,
     /// Ego target acceleration for beta = -1 (m/s^2, negative).
     pub a_dec: f64,

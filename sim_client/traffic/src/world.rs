@@ -13,7 +13,8 @@ use crate::{
 pub enum EgoMode {
     /// Follows the last [`EgoCommand`] (the planner under test drives).
     Commanded,
-    /// Drives itself with IDM + MOBIL and no random switches (rule-based baseline).
+    /// Drives itself with IDM + MOBIL and no random switches (rule-based baseline), with the
+    /// commanded ego's jerk and speed bounds: the same vehicle, another driver.
     IdmMobil,
 }
 
@@ -328,8 +329,8 @@ impl World {
         let dt = self.params.dt;
         let road = self.road;
         for (veh, a) in self.vehicles.iter_mut().zip(accels) {
-            let is_commanded_ego = veh.kind == VehicleKind::Ego && self.ego_mode == EgoMode::Commanded;
-            integrate_longitudinal(veh, a, dt, is_commanded_ego.then_some(road.speed_limit));
+            let is_ego = veh.kind == VehicleKind::Ego;
+            integrate_longitudinal(veh, a, dt, is_ego.then_some(road.speed_limit));
             advance_lateral(veh, &road, dt);
         }
         self.step_index += 1;
@@ -419,7 +420,10 @@ impl World {
                 };
                 jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
             }
-            (VehicleKind::Ego, EgoMode::IdmMobil) => self.idm_in_lanes(i, sets),
+            (VehicleKind::Ego, EgoMode::IdmMobil) => {
+                let target = self.idm_in_lanes(i, sets);
+                jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
+            }
             (VehicleKind::Surrounding, _) => {
                 let idm = self.idm_in_lanes(i, sets);
                 match v.beta {
