@@ -94,6 +94,13 @@ pub struct EgoModel {
     /// may. Without `continuous_accel` the range is the one deceleration, so below it any SV
     /// ahead that needs more than that deceleration is an emergency.
     pub emergency_decel_mps2: f64,
+    /// Room Layer B's front case keeps for an SV ahead braking, m/s^2 (positive; 0: none):
+    /// it brakes so that the ego could still stop behind that SV were it to brake this hard
+    /// to a standstill from now. Braking just enough behind an SV at its present speed leaves
+    /// none, and a fast approach to a slow vehicle ends in it when that vehicle slows down.
+    /// Behind an SV at the ego's speed this never asks more than itself, so it matters only
+    /// for a closing ego.
+    pub lead_brake_room_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_firm_brake`, m/s^2: with a cost that
@@ -119,6 +126,7 @@ impl Default for EgoModel {
             continuous_accel: true,
             max_decel_mps2: -6.0,
             emergency_decel_mps2: -9.0,
+            lead_brake_room_mps2: 3.0,
             comfort_decel_mps2: -2.0,
             firm_decel_mps2: -1.0,
             cruise_band_mps2: 0.3,

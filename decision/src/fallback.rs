@@ -5,6 +5,7 @@ use crate::config::PlannerConfig;
 use crate::idm::{idm_distance, sv_idm_distance};
 use crate::lanes::{lanes_at, LaneSet};
 use crate::model::Kinematics;
+use crate::stopping::stopping_decel;
 use crate::types::{Beta, CorrectiveEntry, Situation, Threat};
 
 /// The fallback's choice: the new `beta` and the threat that decided it.
@@ -33,6 +34,9 @@ struct Candidate {
     deficit: f64,
     /// Braking that keeps the jam distance behind it (`BrakingEnds::needed_decel`; 0 behind the ego).
     stopping: f64,
+    /// Braking that keeps it were it to brake at `ego.lead_brake_room_mps2` to a stop (0 behind
+    /// the ego).
+    room: f64,
 }
 
 impl Candidate {
@@ -46,6 +50,11 @@ impl Candidate {
         }
     }
 
+    /// The braking it asks for: to keep the jam distance behind it, and the room for its braking.
+    fn need(&self) -> f64 {
+        self.stopping.max(self.room)
+    }
+
     /// Most critical first: smallest TTC, then deepest inside its IDM distance, then id.
     fn more_critical(&self, other: &Candidate) -> bool {
         (self.ttc(), -self.deficit, self.id) < (other.ttc(), -other.deficit, other.id)
@@ -57,8 +66,10 @@ impl Candidate {
 /// 1. **Front vehicle braking / too close**: an SV ahead in a lane the ego occupies
 ///    (`occupancy0`) that is inside its IDM distance (the distance includes the closing-speed
 ///    term, so a fast approach counts), or that brakes so that staying behind it takes more
-///    than `ego.comfort_decel_mps2` (`BrakingEnds::needed_decel`): decelerate, at least that hard. The
-///    most critical by time to collision decides. While any front SV is inside its IDM
+///    than `ego.comfort_decel_mps2` (`BrakingEnds::needed_decel`): decelerate, at least that hard,
+///    and at least as hard as keeps it behind should it brake at `ego.lead_brake_room_mps2`
+///    to a stop (every front threat's, the most any needs). The most critical by time to
+///    collision decides. While any front SV is inside its IDM
 ///    distance the fallback never accelerates.
 /// 2. **Rear vehicle closing**: otherwise, an SV behind in the ego's lanes that closes in or is
 ///    inside its IDM distance: accelerate.
@@ -108,14 +119,15 @@ pub fn choose(
                     closing: ego.v_mps - sv.v_mps,
                     deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
                     stopping: braking_ends.needed_decel(config, sv, dx - length, ego.v_mps),
+                    room: lead_brake_room(config, dx - length, ego.v_mps, sv.v_mps, sv.a_mps2),
                 };
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
                 let inside_band =
                     !config.hysteresis.soft_band && corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
-                if threat && c.stopping > hardest_stop {
-                    (hardest_stop, hardest_id) = (c.stopping, Some(c.id));
+                if threat && c.need() > hardest_stop {
+                    (hardest_stop, hardest_id) = (c.need(), Some(c.id));
                 }
                 if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
@@ -129,6 +141,7 @@ pub fn choose(
                     closing: sv.v_mps - ego.v_mps,
                     deficit: sv_idm_distance(&config.idm, ego.v_mps, sv.v_mps, false) - (-dx - length),
                     stopping: 0.0,
+                    room: 0.0,
                 };
                 let threat = c.closing > 0.0 || c.deficit > 0.0;
                 if threat && rear.as_ref().is_none_or(|r| c.more_critical(r)) {
@@ -148,12 +161,12 @@ pub fn choose(
         // The needed deceleration behind a leader not braking is the one that stops the
         // closing within the gap beyond the jam distance; behind every front threat, the
         // largest of these.
-        let needed = -hardest_stop.max(f.stopping);
+        let needed = -hardest_stop.max(f.need());
         return FallbackChoice {
             beta: -1,
             threat: Threat::Front,
             sv_id: Some(f.id),
-            hardest_sv_id: hardest_id.filter(|&id| id != f.id && hardest_stop > f.stopping),
+            hardest_sv_id: hardest_id.filter(|&id| id != f.id && hardest_stop > f.need()),
             ttc_s: f.ttc(),
             needed_decel_mps2: needed,
         };
@@ -190,6 +203,16 @@ pub fn choose(
         ttc_s: f64::INFINITY,
         needed_decel_mps2: 0.0,
     }
+}
+
+/// Least braking (m/s^2, >= 0) that keeps the ego `jam_distance_m` behind an SV `gap_m` ahead
+/// should it brake at `ego.lead_brake_room_mps2` (or harder, as measured) to a standstill.
+fn lead_brake_room(config: &PlannerConfig, gap_m: f64, v_ego: f64, v_sv: f64, a_sv: f64) -> f64 {
+    let room = config.ego.lead_brake_room_mps2;
+    if room <= 0.0 {
+        return 0.0;
+    }
+    stopping_decel(gap_m, config.idm.jam_distance_m, v_ego, v_sv, a_sv.min(-room), 0.0)
 }
 
 /// The fallback's acceleration: the state's representative one, braking harder when the front
@@ -308,7 +331,9 @@ mod tests {
 
     #[test]
     fn a_front_threat_beyond_the_planned_range_gets_the_emergency_braking_it_needs() {
-        let c = PlannerConfig::default();
+        // The closing alone (the room for the SV's braking: the next test).
+        let mut c = PlannerConfig::default();
+        c.ego.lead_brake_room_mps2 = 0.0;
         let kin = Kinematics::new(&c);
         // Gap 24 m, the ego at 26 m/s and the SV at 8 m/s: keeping the 2 m jam distance takes
         // 18^2 / (2 * 22) = 7.36 m/s^2, beyond the planned -6.
@@ -340,8 +365,44 @@ mod tests {
     }
 
     #[test]
-    fn the_braking_is_for_the_front_threat_that_needs_the_most() {
+    fn the_room_for_an_sv_ahead_braking_is_the_stop_behind_its_stop() {
         let c = PlannerConfig::default();
+        let room = c.ego.lead_brake_room_mps2;
+        assert_eq!(room, 3.0);
+        // The ego at 30 m/s 60 m behind an SV at 8 m/s: the SV would stop within 64 / 6 m, and
+        // the ego, faster until it stops, within 58 m beyond that.
+        let closed_form = 900.0 / (2.0 * (58.0 + 64.0 / 6.0));
+        assert!((lead_brake_room(&c, 60.0, 30.0, 8.0, 0.0) - closed_form).abs() < 1e-6);
+        // Braking harder than the room already: that braking.
+        let harder = 900.0 / (2.0 * (58.0 + 64.0 / 10.0));
+        assert!((lead_brake_room(&c, 60.0, 30.0, 8.0, -5.0) - harder).abs() < 1e-6);
+        // Behind an SV at the ego's speed, never more than the room itself.
+        for gap in [3.0, 10.0, 30.0, 60.0] {
+            let d = lead_brake_room(&c, gap, 30.0, 30.0, 0.0);
+            assert!(d > 0.0 && d <= room + 1e-9, "{gap} m: {d}");
+        }
+        // Off: none; and as Layer B's need, 7 m/s^2 > 6 is an emergency.
+        let mut off = c.clone();
+        off.ego.lead_brake_room_mps2 = 0.0;
+        assert_eq!(lead_brake_room(&off, 60.0, 30.0, 8.0, 0.0), 0.0);
+        let mut s = situation(vec![sv(1, 100.0 + 50.0 + c.vehicle.length_m, 4.0, 8.0)]);
+        s.ego.v_mps = 30.0;
+        let kin = Kinematics::new(&c);
+        let f = choose(&c, &s, LaneSet::single(2), &[]);
+        let need = 900.0 / (2.0 * (48.0 + 64.0 / 6.0));
+        assert!((f.needed_decel_mps2 + need).abs() < 1e-6, "{f:?}");
+        assert!(needs_emergency_braking(&c, &kin, &f));
+        assert!(!needs_emergency_braking(
+            &off,
+            &kin,
+            &choose(&off, &s, LaneSet::single(2), &[])
+        ));
+    }
+
+    #[test]
+    fn the_braking_is_for_the_front_threat_that_needs_the_most() {
+        let mut c = PlannerConfig::default();
+        c.ego.lead_brake_room_mps2 = 0.0;
         let kin = Kinematics::new(&c);
         // Changing from lane 3 into lane 2 (y = 0.05, both lanes occupied). In lane 3, 15 m
         // ahead and closing at 5 m/s: TTC 3 s, 25 / 26 = 0.96 m/s^2 keeps the jam distance.

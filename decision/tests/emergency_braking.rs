@@ -55,7 +55,10 @@ fn fast_behind_slow(config: PlannerConfig) -> common::Trace {
 
 #[test]
 fn the_fallback_brakes_beyond_the_planned_range_when_staying_behind_takes_it() {
-    let c = PlannerConfig::default();
+    // Without the room for the vehicle ahead to slow down (the next test), the braking is the
+    // closed form of the closing alone.
+    let mut c = PlannerConfig::default();
+    c.ego.lead_brake_room_mps2 = 0.0;
     assert!(c.ego.emergency_decel_mps2 < -8.1 && c.ego.max_decel_mps2 > -8.0);
     let trace = fast_behind_slow(c.clone());
     let first = &trace.decisions[0];
@@ -101,11 +104,68 @@ fn the_mpc_is_not_asked_when_its_range_cannot_keep_the_ego_behind() {
 
 #[test]
 fn within_the_planned_range_the_mpc_decides() {
-    // 60 m behind at 30 m/s: 22^2 / (2 * 58) = 4.2 m/s^2 keeps the jam distance, within the
-    // MPC's range: no emergency, and the MPC (nominal or relaxed) answers the first decision.
-    let trace = behind(PlannerConfig::default(), 30.0, 60.0, 8.0);
+    // 60 m behind at 30 m/s a vehicle at 14 m/s: 16^2 / (2 * 58) = 2.2 m/s^2 keeps the jam
+    // distance, and 30^2 / (2 * (58 + 14^2 / 6)) = 5.0 m/s^2 were it to brake at 3 m/s^2 to a
+    // stop: within the MPC's range, no emergency, and the MPC (nominal or relaxed) answers.
+    let trace = behind(PlannerConfig::default(), 30.0, 60.0, 14.0);
     assert_ne!(trace.decisions[0].layer, Layer::Fallback);
     assert!(trace.strongest_braking() >= PlannerConfig::default().ego.max_decel_mps2 - 1e-6);
-    assert!(!first_stats(PlannerConfig::default(), 30.0, 60.0, 8.0).emergency);
+    assert!(!first_stats(PlannerConfig::default(), 30.0, 60.0, 14.0).emergency);
     assert!(trace.least_gap_m > 0.0, "least gap {}", trace.least_gap_m);
+}
+
+/// The ego at 30 m/s, `gap` m (bumpers) behind a vehicle at 8 m/s that holds its speed for
+/// 2 s, then slows at 3 m/s^2 to a stop.
+fn fast_behind_slowing(config: PlannerConfig, gap: f64, t_brake: f64) -> common::Trace {
+    ClosedLoop {
+        config,
+        lanes: 1,
+        desired_speed_mps: 30.0,
+        ego_v_mps: 30.0,
+        vehicles: vec![Vehicle {
+            x_m: gap + common::LENGTH_M,
+            v_mps: 8.0,
+            accel: Box::new(move |t, _| if t < t_brake { 0.0 } else { -3.0 }),
+            speed_bounds: (0.0, f64::INFINITY),
+        }],
+        duration_s: 10.0,
+    }
+    .run_jerk_limited(15.0)
+}
+
+#[test]
+fn the_fallback_keeps_room_for_a_slow_vehicle_ahead_to_slow_down() {
+    // Braking just enough behind the vehicle at its present speed (-6.37 m/s^2 from 40 m,
+    // -6 from 45 m) leaves no room for it to slow down; the brakes build up at 15 m/s^3. With
+    // the room for it to brake at 3 m/s^2 to a stop, the ego brakes harder at once (-9 and
+    // -8.39) and stays about the jam distance behind it.
+    let c = PlannerConfig::default();
+    assert_eq!(c.ego.lead_brake_room_mps2, 3.0);
+    let mut no_room = c.clone();
+    no_room.ego.lead_brake_room_mps2 = 0.0;
+    for (gap, t_brake) in [(40.0, 1.2), (40.0, 1.6), (45.0, 0.8), (45.0, 1.2), (45.0, 1.6)] {
+        let with = fast_behind_slowing(c.clone(), gap, t_brake);
+        assert_eq!(with.decisions[0].layer, Layer::Fallback);
+        assert!(
+            with.decisions[0].accel_mps2 < -8.0,
+            "{gap} m, {t_brake} s: braking {}",
+            with.decisions[0].accel_mps2
+        );
+        assert!(
+            with.least_gap_m > 1.5,
+            "{gap} m, {t_brake} s: least gap {}",
+            with.least_gap_m
+        );
+        let without = fast_behind_slowing(no_room.clone(), gap, t_brake);
+        assert!(
+            without.decisions[0].accel_mps2 > -6.5,
+            "{gap} m, {t_brake} s: braking {}",
+            without.decisions[0].accel_mps2
+        );
+        assert!(
+            without.least_gap_m < -0.5,
+            "{gap} m, {t_brake} s: least gap {}",
+            without.least_gap_m
+        );
+    }
 }

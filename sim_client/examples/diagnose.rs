@@ -17,7 +17,8 @@
 //! `SHOW_CAUSES=1` what the decisions the nominal MPC could not answer (Layer A or B) were in
 //! corrective mode for: an SV that cut in, the ego's own lane change, or an SV it closed in on,
 //! and how long since the trigger. `SV_KEEP_LONG=P` and `SV_LANE_CHANGE=P` set the SVs' random
-//! maneuver switches (as `campaign --sv-keep-long`, `--sv-lane-change`).
+//! maneuver switches (as `campaign --sv-keep-long`, `--sv-lane-change`), `SV_SLOWDOWN=M/S2` their
+//! slowdown's braking (as `--sv-slowdown-decel`).
 use sim_client::campaign::{load_entries, paper_entries, scale_trials, trial_spec, CampaignSettings};
 use sim_client::diagnosis::infeasibility_cause;
 use sim_client::episode::{run_episode, run_episode_observed, Driver, StepObserver};
@@ -42,6 +43,9 @@ fn main() -> anyhow::Result<()> {
     }
     if let Ok(p) = std::env::var("SV_LANE_CHANGE") {
         settings.params.sv.p_random_lane_change = p.parse()?;
+    }
+    if let Ok(d) = std::env::var("SV_SLOWDOWN") {
+        settings.params.sv.gentle_decel = d.parse()?;
     }
     settings.params.validate()?;
     let mut switches: BTreeMap<String, u64> = BTreeMap::new();

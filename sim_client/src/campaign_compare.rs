@@ -288,8 +288,14 @@ fn pair(baseline: &[TrialRecord], candidate: &[TrialRecord], drivers: (DriverKin
         }
         if rb.sv != rc.sv {
             return Err(SimClientError::Config(format!(
-                "configuration {}: the SVs drove otherwise in the two runs (keep probability {} / {}, random lane changes {} / {}): compare runs of the same --sv-keep-long and --sv-lane-change",
-                key.0, rb.sv.p_keep_long, rc.sv.p_keep_long, rb.sv.p_random_lane_change, rc.sv.p_random_lane_change
+                "configuration {}: the SVs drove otherwise in the two runs (keep probability {} / {}, random lane changes {} / {}, slowdown {} / {} m/s^2): compare runs of the same --sv-keep-long, --sv-lane-change and --sv-slowdown-decel",
+                key.0,
+                rb.sv.p_keep_long,
+                rc.sv.p_keep_long,
+                rb.sv.p_random_lane_change,
+                rc.sv.p_random_lane_change,
+                rb.sv.gentle_decel,
+                rc.sv.gentle_decel
             )));
         }
         if rb.traffic != rc.traffic || rb.duration_s != rc.duration_s {

@@ -195,7 +195,7 @@ pub fn campaign_markdown(r: &CampaignResults) -> String {
         s,
         "Seed {}, episodes of {} s, {} configuration(s), wall time {:.1} s on {} thread(s). \
          SVs keep their longitudinal maneuver with probability {} and try a random lane change \
-         with probability {} per decision instant.\n",
+         with probability {} per decision instant; in their slowdown mode they brake at {} m/s^2.\n",
         r.seed,
         r.duration_s,
         r.entries.len(),
@@ -203,6 +203,7 @@ pub fn campaign_markdown(r: &CampaignResults) -> String {
         r.threads,
         r.sv.p_keep_long,
         r.sv.p_random_lane_change,
+        r.sv.gentle_decel,
     );
     let _ = writeln!(
         s,

@@ -108,6 +108,11 @@ pub struct CampaignArgs {
     /// MOBIL's (0: MOBIL's only).
     #[arg(long, value_name = "P", default_value_t = SvBehaviour::default().p_random_lane_change)]
     sv_lane_change: f64,
+    /// Deceleration of an SV in its slowdown mode (beta = -1), m/s^2, positive
+    /// (formulation.md: 1). Harder slowdowns are traffic the planner's prediction was not
+    /// tuned on.
+    #[arg(long, value_name = "M/S2", default_value_t = SvBehaviour::default().gentle_decel)]
+    sv_slowdown_decel: f64,
     /// Record the first `--record-trials` trials of every configuration, for every driver,
     /// into this directory (`config03-trial0-planner.mcap`, ...; docs/recording.md). They are
     /// run again after the campaign with the same seeds.
@@ -135,6 +140,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         paper,
         sv_keep_long,
         sv_lane_change,
+        sv_slowdown_decel,
         record,
         record_trials,
         trace_hard_braking,
@@ -147,7 +153,7 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
     let sv = SvBehaviour {
         p_keep_long: *sv_keep_long,
         p_random_lane_change: *sv_lane_change,
-        ..SvBehaviour::default()
+        gentle_decel: *sv_slowdown_decel,
     };
     sv.validate()?;
     let (transport, _planner) = common.open(None)?;

@@ -111,6 +111,9 @@ impl PlannerConfig {
                 "must be finite and at most the strongest braking of beta = -1 (max_decel with continuous_accel, decel without)",
             );
         }
+        if !(e.lead_brake_room_mps2.is_finite() && e.lead_brake_room_mps2 >= 0.0) {
+            return bad("ego.lead_brake_room_mps2", "must be finite and non-negative");
+        }
         let idm = &self.idm;
         // The dynamic term divides by sqrt(a b): zero or a negative would make every margin
         // infinite or NaN.

@@ -69,12 +69,19 @@ impl Trace {
 
 impl ClosedLoop {
     pub fn run(self) -> Trace {
+        self.run_jerk_limited(f64::INFINITY)
+    }
+
+    /// [`ClosedLoop::run`] with the ego's acceleration moving towards each set-point by at most
+    /// `jerk_mps3` per second, as a vehicle's brakes build up.
+    pub fn run_jerk_limited(self, jerk_mps3: f64) -> Trace {
         let mut planner = Planner::new(self.config).unwrap();
         let lane = self.lanes;
         let mut vehicles = self.vehicles;
         let mut accels = vec![0.0; vehicles.len()];
         let (mut x_ego, mut v_ego) = (0.0, self.ego_v_mps);
         let (mut memory, mut beta, mut accel) = (PlannerMemory::default(), 0, 0.0);
+        let mut applied = 0.0_f64;
         let gap = |x_ego: f64, vehicles: &[Vehicle]| vehicles[0].x_m - x_ego - LENGTH_M;
         let mut trace = Trace {
             decisions: Vec::new(),
@@ -121,7 +128,9 @@ impl ClosedLoop {
                 v.v_mps = (v.v_mps + *a * DT_S).clamp(v.speed_bounds.0, v.speed_bounds.1);
                 v.x_m += v.v_mps * DT_S;
             }
-            v_ego = (v_ego + accel * DT_S).max(0.0);
+            let ramp = jerk_mps3 * DT_S;
+            applied = accel.clamp(applied - ramp, applied + ramp);
+            v_ego = (v_ego + applied * DT_S).max(0.0);
             x_ego += v_ego * DT_S;
             trace.least_gap_m = trace.least_gap_m.min(gap(x_ego, &vehicles));
         }
