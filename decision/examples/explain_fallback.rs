@@ -26,17 +26,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ego.x_m, ego.y_m, ego.v_mps, ego.maneuver, problem.ego.occupancy
         );
         // Emergencies are answered before the MPC is asked: the layers' costs do not apply.
-        let decided = Planner::new(config.clone())?.decide(&situation)?;
-        if decided.stats.emergency {
-            let threat = decided
-                .stats
-                .fallback_threat
-                .map_or_else(|| "no".to_string(), |t| format!("{t:?}").to_lowercase());
-            println!(
-                "  emergency: Layer B brakes at {:.2} m/s^2 without asking the MPC ({threat} threat)",
-                decided.setpoint.accel_mps2
-            );
-            continue;
+        // A situation the planner refuses is said so, and the others still explained.
+        match Planner::new(config.clone())?.decide(&situation) {
+            Ok(d) if d.stats.emergency => {
+                let threat = d
+                    .stats
+                    .fallback_threat
+                    .map_or_else(|| "no".to_string(), |t| format!("{t:?}").to_lowercase());
+                println!(
+                    "  emergency: Layer B brakes at {:.2} m/s^2 without asking the MPC ({threat} threat)",
+                    -d.setpoint.accel_mps2
+                );
+                continue;
+            }
+            Ok(_) => {}
+            Err(e) => {
+                println!("  refused: {e}");
+                continue;
+            }
         }
         for mode in [Mode::Nominal, Mode::Relaxed] {
             let (best, count) = decision::solve_by_enumeration(&problem, mode);

@@ -94,12 +94,14 @@ pub struct EgoModel {
     /// may. Without `continuous_accel` the range is the one deceleration, so below it any SV
     /// ahead that needs more than that deceleration is an emergency.
     pub emergency_decel_mps2: f64,
-    /// Room Layer B's front case keeps for an SV ahead braking, m/s^2 (positive; 0: none):
-    /// it brakes so that the ego could still stop behind that SV were it to brake this hard
-    /// to a standstill from now. Braking just enough behind an SV at its present speed leaves
-    /// none, and a fast approach to a slow vehicle ends in it when that vehicle slows down.
-    /// Behind an SV at the ego's speed this never asks more than itself, so it matters only
-    /// for a closing ego.
+    /// Room Layer B's front case keeps for a front threat (an SV ahead the fallback brakes
+    /// for) to slow down, m/s^2 (positive; 0: none): it brakes so that the ego could still
+    /// stop behind that SV were it to brake this hard to a standstill from now. Braking just
+    /// enough behind an SV at its present speed leaves none, and a fast approach to a slow
+    /// vehicle ends in it when that vehicle slows down. Behind an SV at the ego's speed this
+    /// never asks more than itself: at most the planned range (checked), so following is
+    /// never an emergency, and at most the representative deceleration of `beta = -1` (the
+    /// default) it changes nothing but a closing ego's braking.
     pub lead_brake_room_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,

@@ -20,8 +20,9 @@ pub struct FallbackChoice {
     /// Its time to collision, s (infinite when not closing).
     pub ttc_s: f64,
     /// Braking the threat asks for, m/s^2: to keep the jam distance behind every `Front`
-    /// threat (the one that needs the most, which need not be `sv_id`), the comfortable
-    /// braking for a `Band` one, 0 otherwise.
+    /// threat, with room for it to slow down (`ego.lead_brake_room_mps2`; the threat that
+    /// needs the most, which need not be `sv_id`), the comfortable braking for a `Band` one, 0
+    /// otherwise.
     pub needed_decel_mps2: f64,
 }
 
@@ -98,7 +99,7 @@ pub fn choose(
     let mut front: Option<Candidate> = None;
     // The braking the hardest front threat needs: during a lane change the SV with the
     // smallest TTC (which decides) need not be the one that takes the most braking.
-    let mut hardest_stop = 0.0_f64;
+    let mut hardest_need = 0.0_f64;
     let mut hardest_id = None;
     let mut rear: Option<Candidate> = None;
     let mut band: Option<Candidate> = None;
@@ -119,15 +120,15 @@ pub fn choose(
                     closing: ego.v_mps - sv.v_mps,
                     deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
                     stopping: braking_ends.needed_decel(config, sv, dx - length, ego.v_mps),
-                    room: lead_brake_room(config, dx - length, ego.v_mps, sv.v_mps, sv.a_mps2),
+                    room: lead_brake_room(config, dx - length, ego.v_mps, sv.v_mps),
                 };
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
                 let inside_band =
                     !config.hysteresis.soft_band && corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
-                if threat && c.need() > hardest_stop {
-                    (hardest_stop, hardest_id) = (c.need(), Some(c.id));
+                if threat && c.need() > hardest_need {
+                    (hardest_need, hardest_id) = (c.need(), Some(c.id));
                 }
                 if threat && front.as_ref().is_none_or(|f| c.more_critical(f)) {
                     front = Some(c);
@@ -158,15 +159,14 @@ pub fn choose(
         }
     }
     if let Some(f) = front {
-        // The needed deceleration behind a leader not braking is the one that stops the
-        // closing within the gap beyond the jam distance; behind every front threat, the
-        // largest of these.
-        let needed = -hardest_stop.max(f.need());
+        // Behind every front threat, the most any needs: to keep the jam distance behind it,
+        // and room for it to slow down.
+        let needed = -hardest_need.max(f.need());
         return FallbackChoice {
             beta: -1,
             threat: Threat::Front,
             sv_id: Some(f.id),
-            hardest_sv_id: hardest_id.filter(|&id| id != f.id && hardest_stop > f.need()),
+            hardest_sv_id: hardest_id.filter(|&id| id != f.id && hardest_need > f.need()),
             ttc_s: f.ttc(),
             needed_decel_mps2: needed,
         };
@@ -206,13 +206,14 @@ pub fn choose(
 }
 
 /// Least braking (m/s^2, >= 0) that keeps the ego `jam_distance_m` behind an SV `gap_m` ahead
-/// should it brake at `ego.lead_brake_room_mps2` (or harder, as measured) to a standstill.
-fn lead_brake_room(config: &PlannerConfig, gap_m: f64, v_ego: f64, v_sv: f64, a_sv: f64) -> f64 {
+/// should it brake at `ego.lead_brake_room_mps2` to a standstill from now. An SV braking
+/// already is `stopping`'s (`BrakingEnds::needed_decel`, with the end its braking explains).
+fn lead_brake_room(config: &PlannerConfig, gap_m: f64, v_ego: f64, v_sv: f64) -> f64 {
     let room = config.ego.lead_brake_room_mps2;
     if room <= 0.0 {
         return 0.0;
     }
-    stopping_decel(gap_m, config.idm.jam_distance_m, v_ego, v_sv, a_sv.min(-room), 0.0)
+    stopping_decel(gap_m, config.idm.jam_distance_m, v_ego, v_sv, -room, 0.0)
 }
 
 /// The fallback's acceleration: the state's representative one, braking harder when the front
@@ -372,19 +373,16 @@ mod tests {
         // The ego at 30 m/s 60 m behind an SV at 8 m/s: the SV would stop within 64 / 6 m, and
         // the ego, faster until it stops, within 58 m beyond that.
         let closed_form = 900.0 / (2.0 * (58.0 + 64.0 / 6.0));
-        assert!((lead_brake_room(&c, 60.0, 30.0, 8.0, 0.0) - closed_form).abs() < 1e-6);
-        // Braking harder than the room already: that braking.
-        let harder = 900.0 / (2.0 * (58.0 + 64.0 / 10.0));
-        assert!((lead_brake_room(&c, 60.0, 30.0, 8.0, -5.0) - harder).abs() < 1e-6);
+        assert!((lead_brake_room(&c, 60.0, 30.0, 8.0) - closed_form).abs() < 1e-6);
         // Behind an SV at the ego's speed, never more than the room itself.
         for gap in [3.0, 10.0, 30.0, 60.0] {
-            let d = lead_brake_room(&c, gap, 30.0, 30.0, 0.0);
+            let d = lead_brake_room(&c, gap, 30.0, 30.0);
             assert!(d > 0.0 && d <= room + 1e-9, "{gap} m: {d}");
         }
         // Off: none; and as Layer B's need, 7 m/s^2 > 6 is an emergency.
         let mut off = c.clone();
         off.ego.lead_brake_room_mps2 = 0.0;
-        assert_eq!(lead_brake_room(&off, 60.0, 30.0, 8.0, 0.0), 0.0);
+        assert_eq!(lead_brake_room(&off, 60.0, 30.0, 8.0), 0.0);
         let mut s = situation(vec![sv(1, 100.0 + 50.0 + c.vehicle.length_m, 4.0, 8.0)]);
         s.ego.v_mps = 30.0;
         let kin = Kinematics::new(&c);

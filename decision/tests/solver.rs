@@ -84,6 +84,11 @@ fn invalid_configs_are_rejected() {
         ("[ego]\nemergency_decel_mps2 = -inf\n", "ego.emergency_decel_mps2"),
         ("[ego]\nlead_brake_room_mps2 = -1.0\n", "ego.lead_brake_room_mps2"),
         ("[ego]\nlead_brake_room_mps2 = nan\n", "ego.lead_brake_room_mps2"),
+        ("[ego]\nlead_brake_room_mps2 = 6.5\n", "ego.lead_brake_room_mps2"),
+        (
+            "[ego]\ncontinuous_accel = false\nemergency_decel_mps2 = -9.0\nlead_brake_room_mps2 = 4.0\n",
+            "ego.lead_brake_room_mps2",
+        ),
     ] {
         match PlannerConfig::from_toml_str(text) {
             Err(ConfigError::Invalid { field, .. }) => assert_eq!(field, name, "{text}"),

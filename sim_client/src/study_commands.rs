@@ -155,7 +155,13 @@ pub fn run_campaign(common: &Common, args: &CampaignArgs) -> Result<()> {
         p_random_lane_change: *sv_lane_change,
         gentle_decel: *sv_slowdown_decel,
     };
-    sv.validate()?;
+    // Checked with the simulation's other parameters (a slowdown no harder than the vehicles
+    // can brake) before anything is opened.
+    traffic::SimParams {
+        sv,
+        ..traffic::SimParams::default()
+    }
+    .validate()?;
     let (transport, _planner) = common.open(None)?;
     let entries = match &config {
         Some(p) => campaign::load_entries(p)?,

@@ -301,19 +301,22 @@ fn the_svs_behaviour_reaches_the_traffic_and_is_recorded() {
         "1",
         "--sv-lane-change",
         "0",
+        "--sv-slowdown-decel",
+        "2.5",
         "--out",
         out_dir.to_str().unwrap(),
     ]);
+    let sv = SvBehaviour {
+        gentle_decel: 2.5,
+        ..SvBehaviour::deterministic()
+    };
     assert!(ran.status.success(), "{}", String::from_utf8_lossy(&ran.stderr));
     let results: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("campaign/results.json")).unwrap()).unwrap();
-    assert_eq!(
-        results["sv"],
-        serde_json::to_value(SvBehaviour::deterministic()).unwrap()
-    );
+    assert_eq!(results["sv"], serde_json::to_value(sv).unwrap());
     let trials = read_trials(&out_dir).unwrap();
     assert_eq!(trials.len(), 6);
-    assert!(trials.iter().all(|t| t.sv == SvBehaviour::deterministic()));
+    assert!(trials.iter().all(|t| t.sv == sv));
     // A probability outside [0, 1] is refused before anything is opened: with a Zenoh transport
     // and no router to reach, a valid value fails on the missing endpoint instead.
     let remote = ["--transport", "zenoh", "--baselines", "false"];
@@ -321,6 +324,13 @@ fn the_svs_behaviour_reaches_the_traffic_and_is_recorded() {
     assert!(!refused.status.success());
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(err.contains("sv.p_keep_long") && err.contains("[0, 1]"), "{err}");
+    // So is a slowdown harder than any vehicle brakes (the simulator's 9 m/s^2), or none.
+    for decel in ["9.5", "0"] {
+        let refused = sim_client(&[&remote[..], &["--sv-slowdown-decel", decel]].concat());
+        assert!(!refused.status.success());
+        let err = String::from_utf8_lossy(&refused.stderr);
+        assert!(err.contains("sv.gentle_decel"), "{decel}: {err}");
+    }
     let unreachable = sim_client(&remote);
     assert!(!unreachable.status.success());
     let err = String::from_utf8_lossy(&unreachable.stderr);

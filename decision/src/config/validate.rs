@@ -111,8 +111,16 @@ impl PlannerConfig {
                 "must be finite and at most the strongest braking of beta = -1 (max_decel with continuous_accel, decel without)",
             );
         }
-        if !(e.lead_brake_room_mps2.is_finite() && e.lead_brake_room_mps2 >= 0.0) {
-            return bad("ego.lead_brake_room_mps2", "must be finite and non-negative");
+        // Behind an SV at the ego's speed the room asks for up to itself: beyond the planned
+        // range, close following would be an emergency that skips the MPC.
+        if !(e.lead_brake_room_mps2.is_finite()
+            && e.lead_brake_room_mps2 >= 0.0
+            && e.lead_brake_room_mps2 <= -strongest_state_braking)
+        {
+            return bad(
+                "ego.lead_brake_room_mps2",
+                "must be finite, non-negative and at most the strongest braking of beta = -1",
+            );
         }
         let idm = &self.idm;
         // The dynamic term divides by sqrt(a b): zero or a negative would make every margin

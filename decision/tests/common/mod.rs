@@ -1,6 +1,7 @@
 //! A closed loop on one lane for the integration tests: the planner decides every 0.4 s, the
 //! ego applies each answer's set-point until the next, and all vehicles are integrated at
 //! 50 ms. Each vehicle ahead is observed with the acceleration it had in the step before.
+//! `run_jerk_limited` lets the ego's brakes build up at a given jerk instead of at once.
 
 // Each test crate uses its own part of the loop.
 #![allow(dead_code)]

@@ -149,6 +149,14 @@ impl SimParams {
                 reason: "politeness and threshold must be finite",
             });
         }
-        self.sv.validate()
+        self.sv.validate()?;
+        // An SV's slowdown is a braking its vehicle has.
+        if self.sv.gentle_decel > -self.idm.a_min {
+            return Err(SimError::InvalidParameter {
+                name: "sv.gentle_decel",
+                reason: "must be at most the strongest braking -idm.a_min",
+            });
+        }
+        Ok(())
     }
 }

@@ -88,3 +88,26 @@ fn idm_mobil_ego_and_commanded_ego_brake_alike() {
     }
     assert_eq!(a[ramp].0, p.idm.a_min);
 }
+
+#[test]
+fn idm_mobil_ego_keeps_the_speed_limit_of_the_commanded_ego() {
+    // Desired 45 m/s on a road limited to 40: the IDM asks for more at 40, the vehicle eases
+    // its acceleration to 0 at the limit (jerk-limited) and never exceeds it.
+    let p = calm();
+    let s = Scenario {
+        road: Road::new(2, 40.0).unwrap(),
+        ego: init(0.0, 1, 36.0, 45.0),
+        svs: vec![],
+    };
+    let mut w = World::new(&s, &p, EgoMode::IdmMobil, 1).unwrap();
+    let steps = trace(&mut w, 100);
+    let da_max = p.jerk_max * p.dt + 1e-9;
+    let mut previous = 0.0;
+    for (k, &(a, v)) in steps.iter().enumerate() {
+        assert!(v <= 40.0 + 1e-12, "step {k}: speed {v}");
+        assert!((a - previous).abs() <= da_max, "step {k}: {previous} -> {a}");
+        previous = a;
+    }
+    let (a, v) = steps[steps.len() - 1];
+    assert!((v - 40.0).abs() < 1e-6 && a.abs() < 1e-6, "ends at {v} m/s, {a} m/s^2");
+}
