@@ -36,7 +36,7 @@ struct Candidate {
     /// Braking that keeps the jam distance behind it (`BrakingEnds::needed_decel`; 0 behind the ego).
     stopping: f64,
     /// Braking that keeps it were it to brake at `ego.lead_brake_room_mps2` to a stop (0 behind
-    /// the ego).
+    /// the ego and for an SV ahead that is no threat).
     room: f64,
 }
 
@@ -114,17 +114,22 @@ pub fn choose(
         };
         if lanes.intersects(occupancy0) {
             if dx >= 0.0 {
-                let c = Candidate {
+                let mut c = Candidate {
                     id: sv.id,
                     gap: dx - length,
                     closing: ego.v_mps - sv.v_mps,
                     deficit: idm_distance(&config.idm, ego.v_mps, sv.v_mps) - (dx - length),
                     stopping: braking_ends.needed_decel(config, sv, dx - length, ego.v_mps),
-                    room: lead_brake_room(config, dx - length, ego.v_mps, sv.v_mps),
+                    room: 0.0,
                 };
                 // Inside its IDM distance, or braking so that staying behind it takes more
                 // than the ego's comfortable braking: the paper's "front vehicle braking".
                 let threat = c.deficit > 0.0 || c.stopping > -config.ego.comfort_decel_mps2;
+                // The room only adds to a threat's braking: this runs every decision, so the
+                // bisection runs only for threats.
+                if threat {
+                    c.room = lead_brake_room(config, c.gap, ego.v_mps, sv.v_mps);
+                }
                 let inside_band =
                     !config.hysteresis.soft_band && corrective.iter().any(|e| e.sv_id == sv.id && c.gap < e.trigger_m);
                 if threat && c.need() > hardest_need {

@@ -410,18 +410,17 @@ impl World {
         let v = &self.vehicles[i];
         let p = &self.params;
         match (v.kind, self.ego_mode) {
-            (VehicleKind::Ego, EgoMode::Commanded) => {
-                let target = match (self.ego_accel_setpoint, v.beta) {
+            // One vehicle whoever drives it: the driver picks the target, the vehicle's
+            // jerk and speed bounds apply to both.
+            (VehicleKind::Ego, mode) => {
+                let target = match (mode, self.ego_accel_setpoint, v.beta) {
+                    (EgoMode::IdmMobil, _, _) => self.idm_in_lanes(i, sets),
                     // The physical limits every vehicle has (IDM's strongest braking).
-                    (Some(a), _) => a.clamp(p.idm.a_min, p.a_acc),
-                    (None, 1) => p.a_acc,
-                    (None, -1) => p.a_dec,
-                    (None, _) => 0.0,
+                    (EgoMode::Commanded, Some(a), _) => a.clamp(p.idm.a_min, p.a_acc),
+                    (EgoMode::Commanded, None, 1) => p.a_acc,
+                    (EgoMode::Commanded, None, -1) => p.a_dec,
+                    (EgoMode::Commanded, None, _) => 0.0,
                 };
-                jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
-            }
-            (VehicleKind::Ego, EgoMode::IdmMobil) => {
-                let target = self.idm_in_lanes(i, sets);
                 jerk_limited_acceleration(v.v, self.road.speed_limit, v.a, target, p.jerk_max, p.dt)
             }
             (VehicleKind::Surrounding, _) => {
