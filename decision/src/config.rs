@@ -115,9 +115,26 @@ pub struct EgoModel {
     pub cruise_band_mps2: f64,
     /// Allow a lateral and a longitudinal change in the same step (9 actions instead of 5).
     pub combined_actions: bool,
-    /// How long the vehicle takes for a one-lane change, s. The planner holds the origin lane
-    /// occupied for this long after a change begins (beyond the horizon at the defaults).
+    /// How long the vehicle takes for a one-lane change, s: how fast the evidence expects an
+    /// SV changing lanes to move sideways.
     pub lane_change_s: f64,
+    /// Which lanes a plan occupies after it changes lanes.
+    pub plan_occupancy: PlanOccupancy,
+}
+
+/// Which lanes a plan occupies after a lane change: the rows of the SVs in those lanes apply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlanOccupancy {
+    /// Every lane the ego occupies now and every lane the plan has targeted, to the horizon's
+    /// end: a lane change takes `lane_change_s` (3 s), longer than the horizon, and the body
+    /// spans both lanes meanwhile (formulation.md).
+    #[default]
+    HeldThroughChange,
+    /// The paper's `alpha`: after each step the ego is in the lane its maneuver targets and no
+    /// other (eq:state_transition; the rows apply where an SV shares that lane). A change is
+    /// complete, for the rows, one step after it begins.
+    TargetLane,
 }
 
 impl Default for EgoModel {
@@ -134,6 +151,7 @@ impl Default for EgoModel {
             cruise_band_mps2: 0.3,
             combined_actions: false,
             lane_change_s: 3.0,
+            plan_occupancy: PlanOccupancy::HeldThroughChange,
         }
     }
 }

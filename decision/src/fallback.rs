@@ -434,6 +434,39 @@ mod tests {
     }
 
     #[test]
+    fn the_room_can_make_another_sv_the_one_that_needs_the_most_and_abort_a_change() {
+        let c = PlannerConfig::default();
+        // Changing from lane 3 into lane 2 (both occupied). In lane 3, 20 m ahead at 19 m/s:
+        // the most critical (TTC 20 s), inside its IDM distance, with almost nothing to brake
+        // for. In lane 2, 5 m ahead at the ego's 20 m/s: never closing, inside its IDM
+        // distance, and the one that leaves the least room should it brake at 3 m/s^2.
+        let mut s = situation(vec![
+            sv(1, 100.0 + 20.0 + c.vehicle.length_m, 0.0, 19.0),
+            sv(2, 100.0 + 5.0 + c.vehicle.length_m, 4.0, 20.0),
+        ]);
+        s.ego.y_m = 0.05;
+        s.ego.maneuver.lane = 2;
+        let f = choose(&c, &s, LaneSet::single(2).with(3), &[]);
+        assert_eq!(
+            (f.threat, f.sv_id, f.hardest_sv_id),
+            (Threat::Front, Some(1), Some(2)),
+            "{f:?}"
+        );
+        // Both at 20 m/s, the ego braking at d < 3 stops last: 5 + 400 / 6 - 400 / (2 d) = 2.
+        let room = 200.0 / (5.0 - 2.0 + 400.0 / 6.0);
+        assert!((f.needed_decel_mps2 + room).abs() < 1e-6, "{f:?}");
+        // Lane 2's SV decides: the change is aborted back to lane 3.
+        assert_eq!(lateral_target(&c, &s, &f), 3);
+        // Without the room lane 3's SV needs the most (a little, to keep its jam distance),
+        // and the change into lane 2 goes on.
+        let mut no_room = c.clone();
+        no_room.ego.lead_brake_room_mps2 = 0.0;
+        let f = choose(&no_room, &s, LaneSet::single(2).with(3), &[]);
+        assert_eq!((f.sv_id, f.hardest_sv_id), (Some(1), None), "{f:?}");
+        assert_eq!(lateral_target(&no_room, &s, &f), 2);
+    }
+
+    #[test]
     fn rear_closing_faster_accelerates() {
         let c = PlannerConfig::default();
         // Front: gap 45, closing 1 -> 45 s. Rear: gap 10, closing 10 -> 1 s.

@@ -39,7 +39,7 @@ mod validate;
 
 // The exact evaluation of one sequence and its acceleration LP, for the examples that
 // measure them and the tests that hold the backends to them.
-pub use config::{Backend, LateralDeparture, PlannerConfig, RearDistance};
+pub use config::{Backend, LateralDeparture, PlanOccupancy, PlannerConfig, RearDistance};
 pub use enumeration::solve as solve_by_enumeration;
 pub use error::{ConfigError, DecisionError, InputError, SolverError};
 pub use evaluate::{accel_lp, evaluate, requirements, Evaluation, Mode};

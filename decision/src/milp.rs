@@ -19,11 +19,13 @@
 //!   are dropped, lanes that can never be safe are fixed off), the hysteresis band with its
 //!   slack, and Layer A's global slack (`lp::accel::Slacks`);
 //! - [`Builder::occupancy_rows`]: `o[s][l] >= z[j][l]` for `j <= s`: a lane stays occupied
-//!   once targeted because a lane change outlasts the horizon.
+//!   once targeted because a lane change outlasts the horizon (with the paper's
+//!   `PlanOccupancy::TargetLane` the occupancy is `z[s][l]` itself).
 //!
 //! [`MilpBackend`] solves a layer's LP relaxation first and runs the MIP only when the
 //! relaxation does not settle it (`backend.rs`).
 
+use crate::config::PlanOccupancy;
 use crate::evaluate::Mode;
 use crate::highs_solver::MipModel;
 use crate::lp::accel::{Cell, Slacks, Step};
@@ -305,7 +307,13 @@ impl<'p> Builder<'p> {
         }
     }
 
+    /// Whether the ego is in lane `l` (index) at step `s`: the lane one-hot itself when a plan
+    /// occupies its target lane alone (`PlanOccupancy::TargetLane`), else a column held on
+    /// once the lane is targeted ([`Builder::occupancy_rows`]).
     fn occupancy(&mut self, s: usize, l: usize) -> Col {
+        if self.problem.ego.plan_occupancy == PlanOccupancy::TargetLane {
+            return self.cols.lane[s][l];
+        }
         match self.cols.occ[s][l] {
             Some(o) => o,
             None => *self.cols.occ[s][l].insert(self.b.col(0.0, 0.0, 1.0)),
@@ -365,13 +373,16 @@ impl<'p> Builder<'p> {
                             continue; // can never bind
                         }
                         let max_slack = relax_bound + if band { c.slack_bound() } else { 0.0 };
-                        let unconditional = p.ego.occupancy.contains(l);
+                        let held = p.ego.plan_occupancy == PlanOccupancy::HeldThroughChange;
+                        let unconditional = held && p.ego.occupancy.contains(l);
                         if best > max_slack + p.tolerance {
                             if unconditional {
                                 return Err(Infeasible);
                             }
-                            // The ego can never be in lane l at this step: forbid it outright.
-                            for j in 0..=s {
+                            // The ego can never be in lane l at this step: forbid it outright
+                            // (and every earlier step in it, where a targeted lane stays held).
+                            let first = if held { 0 } else { s };
+                            for j in first..=s {
                                 self.b.set_upper(self.cols.lane[j][(l - 1) as usize], 0.0);
                             }
                             continue;

@@ -91,6 +91,14 @@ fn the_same_holds_for_the_discrete_maps() {
 }
 
 #[test]
+fn the_same_holds_when_a_plan_occupies_its_target_lane_alone() {
+    let mut config = PlannerConfig::default();
+    config.ego.plan_occupancy = crate::PlanOccupancy::TargetLane;
+    let checked = oracle_points_are_milp_feasible(&config);
+    assert!(checked > 500, "{checked}");
+}
+
+#[test]
 fn the_same_holds_with_terminal_state_prices() {
     let mut config = PlannerConfig::default();
     config.cost.w_beta_terminal = [2.0, 0.5, 3.0];

@@ -1,7 +1,7 @@
 //! The HMDP of one vehicle: action set, `clip`-pruned transitions and the hybrid
 //! kinematic maps `f^sigma`. Shared by the ego's plans and the SVs' scenario tree.
 
-use crate::config::PlannerConfig;
+use crate::config::{PlanOccupancy, PlannerConfig};
 use crate::lanes::LaneSet;
 use crate::types::{Action, Beta, Maneuver};
 
@@ -74,6 +74,8 @@ pub struct EgoStart {
     pub v: f64,
     /// Lanes the ego occupies now (body and target lane).
     pub occupancy: LaneSet,
+    /// Which lanes the plan occupies after a lane change.
+    pub plan_occupancy: PlanOccupancy,
 }
 
 /// Longitudinal kinematics of the maps `f^sigma`.
@@ -188,11 +190,12 @@ pub fn rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, actions: &[Action]
         v: Vec::with_capacity(h),
         occupancy: Vec::with_capacity(h),
     };
-    let (mut m, mut x, mut v, mut occ) = (start.maneuver, start.x, start.v, start.occupancy);
+    // `seen`: every lane occupied now or targeted so far, whichever lanes the plan occupies.
+    let (mut m, mut x, mut v, mut seen) = (start.maneuver, start.x, start.v, start.occupancy);
     let mut new_lanes = 0;
     for &d in actions {
         m = transition(m, d, lanes)?;
-        if !occ.contains(m.lane) {
+        if !seen.contains(m.lane) {
             new_lanes += 1;
         }
         if new_lanes > new_lanes_allowed(start.occupancy) {
@@ -200,12 +203,15 @@ pub fn rollout(kin: &Kinematics, lanes: u8, start: &EgoStart, actions: &[Action]
         }
         let a = kin.accel_of(m.beta);
         (x, v) = kin.step_with(x, v, a);
-        occ = occ.with(m.lane);
+        seen = seen.with(m.lane);
         out.maneuvers.push(m);
         out.accel.push(a);
         out.x.push(x);
         out.v.push(v);
-        out.occupancy.push(occ);
+        out.occupancy.push(match start.plan_occupancy {
+            PlanOccupancy::HeldThroughChange => seen,
+            PlanOccupancy::TargetLane => LaneSet::single(m.lane),
+        });
     }
     Some(out)
 }
@@ -373,6 +379,7 @@ mod tests {
             x: 0.0,
             v: 10.0,
             occupancy,
+            plan_occupancy: PlanOccupancy::HeldThroughChange,
         };
         // From a lane centre: one change, and back, but not a second lane further.
         let centred = at(2, LaneSet::single(2));
@@ -404,6 +411,7 @@ mod tests {
             x: 0.0,
             v: 10.0,
             occupancy: LaneSet::single(2),
+            plan_occupancy: PlanOccupancy::HeldThroughChange,
         };
         let r = rollout(&kin, 3, &start, &[Action::KEEP, left, Action::KEEP]).unwrap();
         let slow = r.with_accelerations(&kin, &start, &[0.0, -1.0, -1.0]);
@@ -418,5 +426,16 @@ mod tests {
         assert_eq!(r.occupancy[1], LaneSet::single(1).with(2));
         assert_eq!(r.occupancy[2], LaneSet::single(1).with(2));
         assert_eq!(r.maneuvers[2], m(1, 0));
+        // The paper's alpha: the target lane alone from the step the change begins.
+        let paper = EgoStart {
+            plan_occupancy: PlanOccupancy::TargetLane,
+            ..start
+        };
+        let r = rollout(&kin, 3, &paper, &[Action::KEEP, left, Action::KEEP]).unwrap();
+        let lanes: Vec<LaneSet> = r.occupancy.clone();
+        assert_eq!(lanes, vec![LaneSet::single(2), LaneSet::single(1), LaneSet::single(1)]);
+        // The limit of one change per plan still counts the lanes left behind.
+        let back_and_on = [left, Action { lateral: 1, ..left }, Action { lateral: 1, ..left }];
+        assert!(rollout(&kin, 3, &paper, &back_and_on).is_none());
     }
 }

@@ -198,6 +198,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         x: ego.x_m,
         v: ego.v_mps,
         occupancy: body.with(ego.maneuver.lane),
+        plan_occupancy: config.ego.plan_occupancy,
     };
     let z = config.z_epsilon();
     let variances = longitudinal_variances(config);

@@ -3,7 +3,7 @@
 //! plan must be feasible for the oracle and cost the same within 1e-6.
 
 use decision::corpus::{agree, paper_classes, SituationGenerator};
-use decision::{Backend, Planner, PlannerConfig};
+use decision::{Backend, PlanOccupancy, Planner, PlannerConfig};
 
 struct Tally {
     checked: usize,
@@ -19,6 +19,10 @@ fn run_at(horizon: usize, per_class: usize, seed: u64, combined: bool, soft_band
     config.timing.horizon = horizon;
     config.ego.combined_actions = combined;
     config.hysteresis.soft_band = soft_band;
+    run_config(config, per_class, seed)
+}
+
+fn run_config(mut config: PlannerConfig, per_class: usize, seed: u64) -> Tally {
     // Optimality must not depend on how loaded the machine is: no time limit in practice.
     config.solver.time_limit_s = 60.0;
     let mut milp = Planner::new(config.clone()).unwrap();
@@ -89,6 +93,16 @@ fn milp_agrees_with_enumeration_paper_band() {
     // The paper's hysteresis slack bound d_HS instead of the soft band.
     let t = run(10, 13, false, false);
     assert_eq!(t.checked, 18 * 10);
+}
+
+#[test]
+fn milp_agrees_with_enumeration_when_a_plan_occupies_its_target_lane_alone() {
+    // The paper's alpha (`ego.plan_occupancy = "target_lane"`) in the paper-literal preset.
+    let mut config = PlannerConfig::from_toml_str(include_str!("../../deploy/paper.toml")).unwrap();
+    config.ego.plan_occupancy = PlanOccupancy::TargetLane;
+    let t = run_config(config, 10, 19);
+    assert_eq!(t.checked, 18 * 10);
+    assert!(t.by_layer.iter().all(|&n| n > 0), "layers {:?}", t.by_layer);
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! Lane occupancy at the planner level: a lane change in progress makes the ego occupy both
 //! lanes, and an SV between lane centres occupies both of its lanes.
 
-use decision::{EgoState, Layer, Maneuver, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation};
+use decision::{
+    EgoState, Layer, Maneuver, PlanOccupancy, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation,
+};
 
 fn situation(ego_y: f64, target: u8, sv_y: f64) -> Situation {
     Situation {
@@ -50,4 +52,28 @@ fn an_sv_between_lanes_occupies_both() {
     let d = decide(&situation(0.0, 2, 2.0));
     assert_eq!(d.next_maneuver.beta, -1, "{d:?}");
     assert!(d.setpoint.accel_mps2 < -0.3, "{d:?}");
+}
+
+/// The paper-literal preset behind a leader deep in its hysteresis band (20 m/s, 65 m behind
+/// one holding 15 m/s: beyond the IDM distance, inside the trigger distance), lane 1 empty.
+fn deep_in_the_band(plan_occupancy: PlanOccupancy) -> decision::Decision {
+    let mut config = PlannerConfig::from_toml_str(include_str!("../../deploy/paper.toml")).unwrap();
+    config.ego.plan_occupancy = plan_occupancy;
+    let mut s = situation(0.0, 2, 0.0);
+    s.ego.desired_speed_mps = 25.0;
+    s.svs = vec![SvObservation::new(1, 70.0, 0.0, 15.0, 0.0)];
+    Planner::new(config).unwrap().decide(&s).unwrap()
+}
+
+#[test]
+fn with_the_papers_alpha_a_lane_change_escapes_the_band_at_once() {
+    // As formulation.md has it, the origin lane stays occupied to the horizon's end: the band
+    // row (gap >= d_trig at every step) leaves no plan, whatever the lane.
+    let held = deep_in_the_band(PlanOccupancy::HeldThroughChange);
+    assert_eq!(held.layer, Layer::Fallback, "{held:?}");
+    // The paper's alpha: one step after the change begins the ego is in lane 1 alone, so the
+    // nominal MPC answers with the change (docs/paper-literal.md, "The lane a plan occupies").
+    let target = deep_in_the_band(PlanOccupancy::TargetLane);
+    assert_eq!(target.layer, Layer::Nominal, "{target:?}");
+    assert_eq!(target.next_maneuver.lane, 1, "{target:?}");
 }
