@@ -127,13 +127,16 @@ pub struct EgoModel {
 #[serde(rename_all = "snake_case")]
 pub enum PlanOccupancy {
     /// Every lane the ego occupies now and every lane the plan has targeted, to the horizon's
-    /// end: a lane change takes `lane_change_s` (3 s), longer than the horizon, and the body
-    /// spans both lanes meanwhile (formulation.md).
+    /// end: a lane change (3 s in the simulators) outlasts the horizon, and the body spans
+    /// both lanes meanwhile (formulation.md).
     #[default]
     HeldThroughChange,
     /// The paper's `alpha`: after each step the ego is in the lane its maneuver targets and no
-    /// other (eq:state_transition; the rows apply where an SV shares that lane). A change is
-    /// complete, for the rows, one step after it begins.
+    /// other (eq:state_transition; the rows apply where an SV shares that lane), whether or not
+    /// the plan changes lanes. A change is complete, for the rows, one step after it begins;
+    /// during a change under way the lane the body is leaving no longer counts (its leader is
+    /// released from the band, as the hysteresis follows the plan's lanes). The fallback still
+    /// reckons with the body's lanes.
     TargetLane,
 }
 

@@ -103,6 +103,12 @@ fn milp_agrees_with_enumeration_when_a_plan_occupies_its_target_lane_alone() {
     let t = run_config(config, 10, 19);
     assert_eq!(t.checked, 18 * 10);
     assert!(t.by_layer.iter().all(|&n| n > 0), "layers {:?}", t.by_layer);
+    // And in the project's planner (rear responsibility: no rows behind in the lanes occupied
+    // now, the soft band).
+    let mut config = PlannerConfig::default();
+    config.ego.plan_occupancy = PlanOccupancy::TargetLane;
+    let t = run_config(config, 10, 23);
+    assert_eq!(t.checked, 18 * 10);
 }
 
 #[test]

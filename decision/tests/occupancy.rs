@@ -1,5 +1,7 @@
 //! Lane occupancy at the planner level: a lane change in progress makes the ego occupy both
-//! lanes, and an SV between lane centres occupies both of its lanes.
+//! lanes (with `ego.plan_occupancy = "held_through_change"`, the default), and an SV between
+//! lane centres occupies both of its lanes. The paper's occupancy (`"target_lane"`) against it
+//! on one decision.
 
 use decision::{
     EgoState, Layer, Maneuver, PlanOccupancy, Planner, PlannerConfig, PlannerMemory, Road, Situation, SvObservation,
