@@ -105,6 +105,12 @@ pub struct EgoModel {
     pub lead_brake_room_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_hard_brake`, m/s^2.
     pub comfort_decel_mps2: f64,
+    /// Braking stronger than this is priced by `cost.w_peak_brake` on top, m/s^2: with the
+    /// linear price beyond `comfort_decel_mps2` alone, braking early moves every later
+    /// position, so the LP's optimum puts all braking beyond the comfort level into the first
+    /// step; priced beyond here too, it is spread over the horizon (docs/sumo.md, "Erratic
+    /// drivers": fewer peaks, a little more time close to others; off by default).
+    pub peak_decel_mps2: f64,
     /// Braking stronger than this is priced by `cost.w_firm_brake`, m/s^2: with a cost that
     /// grows faster than the braking, a gentle deceleration held longer beats a short hard
     /// one for the same loss of speed (a linear cost is indifferent and its LP optimum sits
@@ -150,6 +156,7 @@ impl Default for EgoModel {
             emergency_decel_mps2: -9.0,
             lead_brake_room_mps2: 3.0,
             comfort_decel_mps2: -2.0,
+            peak_decel_mps2: -3.0,
             firm_decel_mps2: -1.0,
             cruise_band_mps2: 0.3,
             combined_actions: false,
@@ -443,6 +450,9 @@ pub struct CostWeights {
     pub w_hard_brake: f64,
     /// Per m/s^2 of planned braking beyond `ego.firm_decel_mps2` per step.
     pub w_firm_brake: f64,
+    /// Per m/s^2 of planned braking beyond `ego.peak_decel_mps2` per step (0: off, and the
+    /// model has no column for it).
+    pub w_peak_brake: f64,
 }
 
 impl Default for CostWeights {
@@ -462,6 +472,7 @@ impl Default for CostWeights {
             w_switch: 4.0,
             w_hard_brake: 20.0,
             w_firm_brake: 2.0,
+            w_peak_brake: 0.0,
         }
     }
 }

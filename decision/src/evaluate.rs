@@ -126,6 +126,7 @@ pub fn maneuver_cost(problem: &Problem, r: &Rollout) -> f64 {
         cost += w.w_brake * (-r.accel[h]).max(0.0);
         cost += w.w_hard_brake * (problem.comfort_decel - r.accel[h]).max(0.0);
         cost += w.w_firm_brake * (problem.firm_decel - r.accel[h]).max(0.0);
+        cost += w.w_peak_brake * (problem.peak_decel - r.accel[h]).max(0.0);
     }
     if let (Some(last), Some(v)) = (r.maneuvers.last(), r.v.last()) {
         cost += problem.lane_value[(last.lane - 1) as usize];

@@ -99,6 +99,14 @@ fn the_same_holds_when_a_plan_occupies_its_target_lane_alone() {
 }
 
 #[test]
+fn the_same_holds_with_a_price_beyond_the_peak_braking() {
+    let mut config = PlannerConfig::default();
+    config.cost.w_peak_brake = 20.0;
+    let checked = oracle_points_are_milp_feasible(&config);
+    assert!(checked > 500, "{checked}");
+}
+
+#[test]
 fn the_same_holds_with_terminal_state_prices() {
     let mut config = PlannerConfig::default();
     config.cost.w_beta_terminal = [2.0, 0.5, 3.0];
@@ -134,6 +142,9 @@ fn columns_of(problem: &Problem, cols: &Columns, e: &Evaluation, num_cols: usize
         set(brake, (-r.accel[s]).max(0.0));
         set(hard, (problem.comfort_decel - r.accel[s]).max(0.0));
         set(firm, (problem.firm_decel - r.accel[s]).max(0.0));
+        if let Some(peak) = prices.peak {
+            set(peak, (problem.peak_decel - r.accel[s]).max(0.0));
+        }
         for (l, o) in cols.occ[s].iter().enumerate() {
             if let Some(o) = *o {
                 set(o, f64::from(u8::from(r.occupancy[s].contains((l + 1) as u8))));

@@ -124,6 +124,8 @@ pub struct Problem {
     pub comfort_decel: f64,
     /// Braking beyond this is priced by `w_firm_brake`, m/s^2.
     pub firm_decel: f64,
+    /// Braking beyond this is priced by `w_peak_brake`, m/s^2.
+    pub peak_decel: f64,
     pub weights: CostWeights,
     /// Terminal cost of ending the horizon in lane `l` (index `l - 1`).
     pub lane_value: Vec<f64>,
@@ -247,6 +249,7 @@ pub fn prepare(config: &PlannerConfig, s: &Situation) -> Prepared {
         length: config.vehicle.length_m,
         comfort_decel: config.ego.comfort_decel_mps2,
         firm_decel: config.ego.firm_decel_mps2,
+        peak_decel: config.ego.peak_decel_mps2,
         weights: config.cost.clone(),
         lane_value: lane_values(config, s),
         svs,

@@ -124,6 +124,30 @@ fn a_leader_slowing_a_little_is_answered_by_comfortable_braking() {
     assert!(d.setpoint.accel_mps2 < comfort - 1.0, "{d:?}");
 }
 
+/// A recorded SUMO decision (`3lanes-erratic`, seed 9015, t = 192.0 s): the ego at 30.7 m/s,
+/// its leader 36 m ahead (bumpers) at 30.2 m/s, whose one-sample dawdle reads -3.7 m/s^2 with
+/// nothing slower ahead of it, so that it is taken to brake on. A constant 2.9 m/s^2 meets every
+/// row; with braking beyond the comfort level priced linearly (the default), the plan puts all
+/// of it into the first step (4.85, then 2, 2 m/s^2): braking early moves every later position.
+/// Priced beyond `ego.peak_decel_mps2` too (`cost.w_peak_brake`), it is spread.
+#[test]
+fn a_price_beyond_the_peak_level_spreads_braking_over_the_horizon() {
+    let s: Situation = serde_json::from_str(include_str!("data/dawdling_leader_3lanes_erratic_9015.json")).unwrap();
+    let config = PlannerConfig::default();
+    let d = decide(config.clone(), &s);
+    assert_eq!(d.layer, Layer::Nominal, "{d:?}");
+    assert!(d.setpoint.accel_mps2 < -4.5, "{d:?}");
+    let mut spread = config;
+    spread.cost.w_peak_brake = 20.0;
+    let d = decide(spread.clone(), &s);
+    assert_eq!(d.layer, Layer::Nominal, "{d:?}");
+    assert!(d.setpoint.accel_mps2 >= spread.ego.peak_decel_mps2 - 0.1, "{d:?}");
+    // The same speed given up over the horizon, within 0.5 m/s: spread, not less.
+    let end = |d: &Decision| d.plan.last().map(|p| p.v_mps).unwrap();
+    let front = decide(PlannerConfig::default(), &s);
+    assert!((end(&d) - end(&front)).abs() < 0.5, "{:?} / {:?}", d.plan, front.plan);
+}
+
 #[test]
 fn a_leader_braking_for_a_slower_car_is_not_followed_as_if_it_stopped() {
     let jam = PlannerConfig::default().idm.jam_distance_m;

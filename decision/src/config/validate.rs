@@ -78,6 +78,7 @@ impl PlannerConfig {
                 &c.w_speed_terminal,
                 &c.w_hard_brake,
                 &c.w_firm_brake,
+                &c.w_peak_brake,
                 &c.w_lane_speed,
                 &c.lane_lookahead_m,
                 &c.lane_horizon_s,
@@ -89,7 +90,8 @@ impl PlannerConfig {
         if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
             return bad("recovery.gamma", "must be in (0, 1)");
         }
-        if !(e.max_decel_mps2 <= e.comfort_decel_mps2
+        if !(e.max_decel_mps2 <= e.peak_decel_mps2
+            && e.peak_decel_mps2 <= e.comfort_decel_mps2
             && e.comfort_decel_mps2 <= e.firm_decel_mps2
             && e.firm_decel_mps2 <= -e.cruise_band_mps2
             && e.cruise_band_mps2 >= 0.0
@@ -97,7 +99,7 @@ impl PlannerConfig {
         {
             return bad(
                 "ego",
-                "need max_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
+                "need max_decel <= peak_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
             );
         }
         let strongest_state_braking = if e.continuous_accel {

@@ -2,8 +2,8 @@
 //! or by the dense simplex (the default).
 //!
 //! The LP is described once (`lp::accel::describe`: per step the price of `|v_des - v_h|`
-//! and of braking beyond zero, `comfort_decel` and `firm_decel`, the speed limit, and per SV
-//! and step the hysteresis and global slacks of the safety rows); the sinks lay it out:
+//! and of braking beyond zero, `comfort_decel`, `firm_decel` and `peak_decel`, the speed
+//! limit, and per SV and step the hysteresis and global slacks of the safety rows); the sinks lay it out:
 //! HiGHS gets a column per acceleration, price and slack and every row (`lp::HighsSink`),
 //! the dense simplex the exact reductions of `lp::DenseSink` (prices of one sign over the
 //! boxes linear or gone, rows the boxes satisfy and repeated rows dropped), usually a

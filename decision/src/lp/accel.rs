@@ -1,7 +1,7 @@
 //! The acceleration LP, written once: per step `h` the speed `v_h = v0 + dt sum_{j <= h} u_j`
 //! held within `[0, v_cap]`, the price `w_v |v_h - v_des|` (plus the terminal weight on the
 //! last step) and the braking prices `w_b max(0, -u_h)`, `w_hb max(0, comfort_decel - u_h)`,
-//! `w_fb max(0, firm_decel - u_h)`; per SV and step the hysteresis slack of the band rows and
+//! `w_fb max(0, firm_decel - u_h)`, `w_pb max(0, peak_decel - u_h)`; per SV and step the hysteresis slack of the band rows and
 //! Layer A's global slack; and the safety rows `gap(u) + slacks >= demand`.
 //!
 //! The exact evaluation builds the whole LP of one fixed sequence from it ([`describe`]);
@@ -80,6 +80,9 @@ pub struct Step<'a> {
     pub deviation: AbsPrice<'a>,
     /// Braking beyond zero, beyond `comfort_decel`, beyond `firm_decel`.
     pub brakes: [Price<'a>; 3],
+    /// Braking beyond `peak_decel`, when priced (absent at weight 0: the model of a
+    /// configuration without it is the one it always was).
+    pub peak: Option<Price<'a>>,
 }
 
 impl<'a> Step<'a> {
@@ -122,6 +125,7 @@ impl<'a> Step<'a> {
                 brake(w.w_hard_brake, problem.comfort_decel),
                 brake(w.w_firm_brake, problem.firm_decel),
             ],
+            peak: (w.w_peak_brake > 0.0).then(|| brake(w.w_peak_brake, problem.peak_decel)),
         }
     }
 }

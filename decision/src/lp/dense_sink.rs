@@ -78,8 +78,9 @@ impl AccelSink for DenseSink {
             limit,
             deviation,
             brakes,
+            peak,
         } = step;
-        for price in deviation.halves().into_iter().chain(brakes) {
+        for price in deviation.halves().into_iter().chain(brakes).chain(peak) {
             self.price(price);
         }
         let (lo, hi) = limit.change.range(self.bounds());

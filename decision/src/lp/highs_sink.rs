@@ -12,11 +12,12 @@ pub struct HighsSink {
     terms: Vec<(usize, f64)>,
 }
 
-/// The price columns of one step: `|v - v_des|` and the three braking prices.
+/// The price columns of one step: `|v - v_des|`, the three braking prices and the peak one.
 #[derive(Debug, Clone, Copy)]
 pub struct PriceCols {
     pub deviation: Col,
     pub brakes: [Col; 3],
+    pub peak: Option<Col>,
 }
 
 impl HighsSink {
@@ -36,6 +37,7 @@ impl HighsSink {
         PriceCols {
             deviation: self.col(step.deviation.weight, 0.0, f64::INFINITY),
             brakes: step.brakes.each_ref().map(|p| self.col(p.weight, 0.0, f64::INFINITY)),
+            peak: step.peak.map(|p| self.col(p.weight, 0.0, f64::INFINITY)),
         }
     }
 
@@ -46,7 +48,8 @@ impl HighsSink {
         for half in [under, over] {
             self.at_least(cols.deviation - half.terms, half.base);
         }
-        for (price, &t) in step.brakes.iter().zip(&cols.brakes) {
+        let peak = step.peak.iter().zip(&cols.peak);
+        for (price, &t) in step.brakes.iter().zip(&cols.brakes).chain(peak) {
             self.at_least(t - price.terms, price.base);
         }
     }
