@@ -89,6 +89,18 @@ fn invalid_configs_are_rejected() {
             "[ego]\ncontinuous_accel = false\nemergency_decel_mps2 = -9.0\nlead_brake_room_mps2 = 4.0\n",
             "ego.lead_brake_room_mps2",
         ),
+        // The peak level lies between the strongest planned braking and the comfort level
+        // where it is priced.
+        ("[ego]\npeak_decel_mps2 = nan\n", "ego.peak_decel_mps2"),
+        (
+            "[ego]\npeak_decel_mps2 = -1.5\n[cost]\nw_peak_brake = 20.0\n",
+            "ego.peak_decel_mps2",
+        ),
+        (
+            "[ego]\npeak_decel_mps2 = -7.0\n[cost]\nw_peak_brake = 20.0\n",
+            "ego.peak_decel_mps2",
+        ),
+        ("[cost]\nw_peak_brake = -1.0\n", "cost"),
     ] {
         match PlannerConfig::from_toml_str(text) {
             Err(ConfigError::Invalid { field, .. }) => assert_eq!(field, name, "{text}"),
@@ -99,6 +111,8 @@ fn invalid_configs_are_rejected() {
         PlannerConfig::from_toml_str("[timing]\nhorizn = 3\n"),
         Err(ConfigError::Parse(_))
     ));
+    // Unpriced, a comfort level beyond the peak level is the configuration it always was.
+    assert!(PlannerConfig::from_toml_str("[ego]\ncomfort_decel_mps2 = -4.0\n").is_ok());
     let mut c = PlannerConfig::default();
     c.recovery.gamma = 1.5;
     assert!(matches!(Planner::new(c), Err(DecisionError::Config(_))));

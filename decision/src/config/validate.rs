@@ -90,8 +90,7 @@ impl PlannerConfig {
         if !(self.recovery.gamma > 0.0 && self.recovery.gamma < 1.0) {
             return bad("recovery.gamma", "must be in (0, 1)");
         }
-        if !(e.max_decel_mps2 <= e.peak_decel_mps2
-            && e.peak_decel_mps2 <= e.comfort_decel_mps2
+        if !(e.max_decel_mps2 <= e.comfort_decel_mps2
             && e.comfort_decel_mps2 <= e.firm_decel_mps2
             && e.firm_decel_mps2 <= -e.cruise_band_mps2
             && e.cruise_band_mps2 >= 0.0
@@ -99,7 +98,7 @@ impl PlannerConfig {
         {
             return bad(
                 "ego",
-                "need max_decel <= peak_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
+                "need max_decel <= comfort_decel <= firm_decel <= -cruise_band <= 0 <= cruise_band <= accel",
             );
         }
         let strongest_state_braking = if e.continuous_accel {
@@ -122,6 +121,17 @@ impl PlannerConfig {
             return bad(
                 "ego.lead_brake_room_mps2",
                 "must be finite, non-negative and at most the strongest braking of beta = -1",
+            );
+        }
+        // Checked only where it is priced: a configuration without the peak price keeps
+        // whatever comfort level it had.
+        let priced = c.w_peak_brake > 0.0;
+        if !(e.peak_decel_mps2.is_finite()
+            && (!priced || (e.max_decel_mps2 <= e.peak_decel_mps2 && e.peak_decel_mps2 <= e.comfort_decel_mps2)))
+        {
+            return bad(
+                "ego.peak_decel_mps2",
+                "must be finite, and with cost.w_peak_brake on within [max_decel, comfort_decel]",
             );
         }
         let idm = &self.idm;

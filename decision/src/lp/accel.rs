@@ -1,8 +1,9 @@
 //! The acceleration LP, written once: per step `h` the speed `v_h = v0 + dt sum_{j <= h} u_j`
 //! held within `[0, v_cap]`, the price `w_v |v_h - v_des|` (plus the terminal weight on the
 //! last step) and the braking prices `w_b max(0, -u_h)`, `w_hb max(0, comfort_decel - u_h)`,
-//! `w_fb max(0, firm_decel - u_h)`, `w_pb max(0, peak_decel - u_h)`; per SV and step the hysteresis slack of the band rows and
-//! Layer A's global slack; and the safety rows `gap(u) + slacks >= demand`.
+//! `w_fb max(0, firm_decel - u_h)` and, when on, `w_pb max(0, peak_decel - u_h)`; per SV and
+//! step the hysteresis slack of the band rows and Layer A's global slack; and the safety rows
+//! `gap(u) + slacks >= demand`.
 //!
 //! The exact evaluation builds the whole LP of one fixed sequence from it ([`describe`]);
 //! the MILP builds its speed terms ([`Step`]) and slack columns ([`Slacks`]) from it and adds
