@@ -359,6 +359,8 @@ impl<'p> Builder<'p> {
     fn safety_rows(&mut self) -> Result<(), Infeasible> {
         let p = self.problem;
         let (u_min, u_max) = p.kin.extreme_accels();
+        // Held: the lanes occupied now stay occupied at every step, and a lane once targeted.
+        let held = p.ego.plan_occupancy == PlanOccupancy::HeldThroughChange;
         for (i, c) in p.svs.iter().enumerate() {
             let relax_bound = if self.cols.slacks.relaxed() { c.relax_bound } else { 0.0 };
             for s in 0..p.horizon {
@@ -373,7 +375,6 @@ impl<'p> Builder<'p> {
                             continue; // can never bind
                         }
                         let max_slack = relax_bound + if band { c.slack_bound() } else { 0.0 };
-                        let held = p.ego.plan_occupancy == PlanOccupancy::HeldThroughChange;
                         let unconditional = held && p.ego.occupancy.contains(l);
                         if best > max_slack + p.tolerance {
                             if unconditional {

@@ -3,11 +3,11 @@
 //!
 //! The LP is described once (`lp::accel::describe`: per step the price of `|v_des - v_h|`
 //! and of braking beyond zero, `comfort_decel`, `firm_decel` and `peak_decel`, the speed
-//! limit, and per SV and step the hysteresis and global slacks of the safety rows); the sinks lay it out:
-//! HiGHS gets a column per acceleration, price and slack and every row (`lp::HighsSink`),
-//! the dense simplex the exact reductions of `lp::DenseSink` (prices of one sign over the
-//! boxes linear or gone, rows the boxes satisfy and repeated rows dropped), usually a
-//! handful of rows.
+//! limit, and per SV and step the hysteresis and global slacks of the safety rows); the sinks
+//! lay it out: HiGHS gets a column per acceleration, price and slack and every row
+//! (`lp::HighsSink`), the dense simplex the exact reductions of `lp::DenseSink` (prices of
+//! one sign over the boxes linear or gone, rows the boxes satisfy and repeated rows dropped),
+//! usually a handful of rows.
 
 use super::{Mode, Requirement};
 use crate::config::LpSolver;
