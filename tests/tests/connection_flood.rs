@@ -8,7 +8,7 @@
 //!   the planner and the vehicle with `planner-local.json5` / `client-tls.json5`, certificates
 //!   from `deploy/tls/make-certs`), junk connections on the router's TLS port.
 //!
-//! What decides it (docs/deploy.md, "Connection floods"): Zenoh's `accept_pending` and
+//! What decides it (docs/hostile-peers.md,"Connection floods"): Zenoh's `accept_pending` and
 //! `accept_timeout` for the idle sockets, zenoh-link-tls's accept throttle for failed TLS
 //! handshakes. The bound on the new vehicle's first answer is generous (a shared machine,
 //! debug builds); with Zenoh's defaults no new vehicle is answered while the flood lasts.

@@ -1,7 +1,7 @@
 //! A flooding vehicle beside the measured ones (`load --flood-sessions N`, Zenoh only): N
 //! sessions send real requests as one vehicle id, each at a fixed rate, without waiting for
 //! the answers, so that the planner's fair queue, rate limit and watchdog are measured under
-//! a flood (docs/deploy.md, "Hostile peers"). The scene is fixed (the worked example of
+//! a flood (docs/hostile-peers.md). The scene is fixed (the worked example of
 //! docs/protocol.md: one SV ahead, a real MILP solve), so runs repeat.
 
 use std::sync::{Arc, Mutex};

@@ -45,7 +45,7 @@ pub const QUEUE_PER_WORKER: usize = 32;
 pub const QUEUE_PER_VEHICLE: usize = 8;
 
 /// Default nice value of the worker threads (see [`ServiceConfig::worker_nice`]): 0, the
-/// process's own. Measured under a flood (docs/deploy.md, "Hostile peers"), 10 did not make
+/// process's own. Measured under a flood (docs/hostile-peers.md), 10 did not make
 /// the watchdog's answers earlier on a machine shared with the vehicles, and it starved the
 /// solves of CPU there.
 pub const WORKER_NICE: i32 = 0;

@@ -1,7 +1,7 @@
 //! The deadline watchdog: answers the fallback marked [`Layer::WatchdogFallback`] for every
 //! queued request still unanswered at its deadline, and interrupts its solve.
 //!
-//! What makes its answers late, and what it does against each (docs/deploy.md, "The
+//! What makes its answers late, and what it does against each (docs/hostile-peers.md, "The
 //! watchdog under a flood"):
 //! * waiting for a core behind the solver threads and the transports when it wakes: it can
 //!   run in the SCHED_FIFO class ([`ServiceConfig::watchdog_rt_priority`]);

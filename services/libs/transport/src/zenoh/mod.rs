@@ -110,7 +110,7 @@ pub const PLANNER_LEASE_MS: u64 = 600;
 /// TCP sockets (or 10 new silent ones a second) kept every new vehicle out. The limit is far above
 /// what a fleet opens at once; 2 s is ample for the handshake's two round trips. Set in the
 /// built-in configurations and every shipped file of a process that listens or may listen
-/// (the routers, the planners; docs/deploy.md, "Connection floods").
+/// (the routers, the planners; docs/hostile-peers.md,"Connection floods").
 pub fn accept() -> serde_json::Value {
     serde_json::json!({ "accept_timeout": ACCEPT_TIMEOUT_MS, "accept_pending": ACCEPT_PENDING })
 }
@@ -130,7 +130,7 @@ pub const TLS_HANDSHAKE_TIMEOUT_MS: u64 = 5000;
 /// The most each link a TLS listener accepts may send, bytes of TLS plaintext a second:
 /// a vehicle's link is read no faster, and what it sends beyond waits in its own TCP
 /// connection. About 1.8 times a vehicle sending 64 SVs in JSON at 20 Hz, 6 times the
-/// same in bincode (docs/deploy.md, "TLS links"). The workspace's patched zenoh-link-tls
+/// same in bincode (docs/hostile-peers.md,"TLS links"). The workspace's patched zenoh-link-tls
 /// takes it from the listen endpoint (`...#ingress_bytes_per_s=524288`), as in
 /// `deploy/zenoh/router-tls.json5`; Zenoh's own TLS links have no such limit.
 pub const TLS_INGRESS_BYTES_PER_S: u64 = 512 * 1024;
@@ -429,7 +429,7 @@ mod tests {
     }
 
     /// Set at build time by `.cargo/config.toml` for zenoh-link-tls and zenoh-link-tcp
-    /// (docs/deploy.md, "Connection floods"); read here from the same build environment.
+    /// (docs/hostile-peers.md,"Connection floods"); read here from the same build environment.
     #[test]
     fn flood_settings_are_set_for_the_build() {
         assert_eq!(option_env!("TLS_ACCEPT_THROTTLE_TIME"), Some("1000"));
