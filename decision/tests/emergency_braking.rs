@@ -171,3 +171,83 @@ fn the_fallback_keeps_room_for_a_slow_vehicle_ahead_to_slow_down() {
         );
     }
 }
+
+/// Whether an answer is an emergency brake, read as a client reads the wire: a fallback
+/// (`layer = fallback`) whose set-point brakes beyond the strongest braking the MPC plans
+/// (`ego.max_decel_mps2`). docs/protocol.md gives this rule to clients.
+fn brakes_as_an_emergency_on_the_wire(config: &PlannerConfig, d: &decision::Decision) -> bool {
+    d.layer == Layer::Fallback && d.setpoint.accel_mps2 < config.ego.max_decel_mps2
+}
+
+#[test]
+fn an_emergency_is_what_the_wire_shows_as_a_fallback_braking_beyond_the_planned_range() {
+    // The ego fast behind slow, braking or stopped vehicles at every distance, with and
+    // without hysteresis and the room for the vehicle ahead to slow down, and the paper classes'
+    // random situations: the in-process flag and the wire's rule agree on every decision.
+    let mut emergencies = 0;
+    let mut fallbacks = 0;
+    let mut configs = vec![PlannerConfig::default()];
+    configs.push({
+        let mut c = PlannerConfig::default();
+        c.hysteresis.enabled = false;
+        c
+    });
+    configs.push({
+        let mut c = PlannerConfig::default();
+        c.ego.lead_brake_room_mps2 = 0.0;
+        c
+    });
+    for config in &configs {
+        let mut planner = Planner::new(config.clone()).unwrap();
+        let mut check = |s: &Situation| {
+            let d = planner.decide(s).unwrap();
+            assert_eq!(
+                d.stats.emergency,
+                brakes_as_an_emergency_on_the_wire(config, &d),
+                "{s:?}: {d:?}"
+            );
+            emergencies += usize::from(d.stats.emergency);
+            fallbacks += usize::from(d.layer == Layer::Fallback);
+        };
+        for v in [10.0, 20.0, 30.0, 36.0] {
+            for gap in [1.0, 3.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0] {
+                for v_sv in [0.0, 5.0, 10.0, 20.0] {
+                    for a_sv in [0.0, -3.0, -6.0] {
+                        let mut sv = SvObservation::new(1, gap + common::LENGTH_M, 0.0, v_sv, a_sv);
+                        if v_sv == 0.0 {
+                            sv.a_mps2 = 0.0;
+                        }
+                        check(&Situation {
+                            road: Road {
+                                lanes: 2,
+                                lane_width_m: 3.5,
+                                speed_limit_mps: 40.0,
+                            },
+                            ego: EgoState {
+                                x_m: 0.0,
+                                y_m: 0.0,
+                                v_mps: v,
+                                desired_speed_mps: 33.0,
+                                maneuver: Maneuver { lane: 1, beta: 0 },
+                            },
+                            svs: vec![sv, SvObservation::new(2, gap * 0.5, 3.5, v_sv, 0.0)],
+                            memory: PlannerMemory::default(),
+                        });
+                    }
+                }
+            }
+        }
+        let mut generator = decision::corpus::SituationGenerator::new(48);
+        for class in decision::corpus::paper_classes() {
+            for _ in 0..20 {
+                check(&generator.situation(config, &class));
+            }
+        }
+    }
+    // Both sides of the rule occur: emergencies, and fallbacks that are not.
+    assert!(emergencies > 50, "{emergencies} emergencies");
+    assert!(
+        fallbacks > emergencies,
+        "{fallbacks} fallbacks, {emergencies} emergencies"
+    );
+}

@@ -238,3 +238,44 @@ fn answer_validates_decides_and_echoes() {
     let core = decision::fallback_only(&config, valid.situation());
     assert_eq!(decision::SetPoint::from(decided.setpoint), core.setpoint);
 }
+
+#[test]
+fn an_emergency_brake_reads_off_the_wire_from_every_fallback_layer() {
+    // docs/protocol.md, "An emergency brake": a fallback layer with a set-point beyond the
+    // strongest braking the MPC plans. The ego at 30 m/s 32 m (bumpers) behind a vehicle at
+    // 8 m/s needs 8.07 m/s^2; the example request needs nothing of the kind.
+    let config = PlannerConfig::default();
+    let mut planner = decision::Planner::new(config.clone()).unwrap();
+    let mut situation = example_request().to_situation();
+    situation.ego.v_mps = 30.0;
+    situation.svs = vec![decision::SvObservation::new(
+        1,
+        situation.ego.x_m + 32.0 + config.vehicle.length_m,
+        situation.ego.y_m,
+        8.0,
+        0.0,
+    )];
+    let emergency = PlanRequest::from_situation(7, 43, 1, &situation).unwrap();
+    let calm = example_request();
+    let reads_as_emergency = |response: &PlanResponse| {
+        let decided = response.outcome.as_decided().expect("a decision");
+        let fallback = matches!(
+            decided.layer(),
+            Ok(Layer::Fallback | Layer::WatchdogFallback | Layer::StaleFallback)
+        );
+        fallback && decided.setpoint.accel_mps2 < config.ego.max_decel_mps2
+    };
+    for (request, expected) in [(emergency, true), (calm, false)] {
+        let valid = request.validate(&config).expect("a valid request");
+        let response = decode_bincode(&encode_bincode(&answer(&mut planner, &valid))).unwrap();
+        assert_eq!(reads_as_emergency(&response), expected, "{response:?}");
+        assert_eq!(
+            planner.decide(valid.situation().get()).unwrap().stats.emergency,
+            expected
+        );
+        for layer in [Layer::WatchdogFallback, Layer::StaleFallback] {
+            let response = decode_bincode(&encode_bincode(&fallback_answer(&config, &valid, layer))).unwrap();
+            assert_eq!(reads_as_emergency(&response), expected, "{layer:?}: {response:?}");
+        }
+    }
+}
