@@ -174,7 +174,8 @@ fn the_fallback_keeps_room_for_a_slow_vehicle_ahead_to_slow_down() {
 
 /// Whether an answer is an emergency brake, read as a client reads the wire: a fallback
 /// (`layer = fallback`) whose set-point brakes beyond the strongest braking the MPC plans
-/// (`ego.max_decel_mps2`). docs/protocol.md gives this rule to clients.
+/// (`ego.max_decel_mps2`). docs/protocol.md gives this rule to clients, and
+/// `protocol::Decided::is_emergency_brake` reads it.
 fn brakes_as_an_emergency_on_the_wire(config: &PlannerConfig, d: &decision::Decision) -> bool {
     d.layer == Layer::Fallback && d.setpoint.accel_mps2 < config.ego.max_decel_mps2
 }
@@ -213,10 +214,10 @@ fn an_emergency_is_what_the_wire_shows_as_a_fallback_braking_beyond_the_planned_
             for gap in [1.0, 3.0, 6.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0] {
                 for v_sv in [0.0, 5.0, 10.0, 20.0] {
                     for a_sv in [0.0, -3.0, -6.0] {
-                        let mut sv = SvObservation::new(1, gap + common::LENGTH_M, 0.0, v_sv, a_sv);
-                        if v_sv == 0.0 {
-                            sv.a_mps2 = 0.0;
+                        if v_sv == 0.0 && a_sv != 0.0 {
+                            continue; // a stopped vehicle does not brake
                         }
+                        let sv = SvObservation::new(1, gap + common::LENGTH_M, 0.0, v_sv, a_sv);
                         check(&Situation {
                             road: Road {
                                 lanes: 2,

@@ -323,6 +323,18 @@ impl Decided {
     pub fn set_layer(&mut self, layer: Layer) {
         self.layer = layer.code();
     }
+
+    /// Whether this is an emergency brake: a fallback (the vehicle's own, the watchdog's or
+    /// a stale request's) braking beyond `planned_decel_mps2`, the strongest braking the
+    /// planner's MPC plans (its `ego.max_decel_mps2`). Only the fallback's answer to a vehicle
+    /// ahead that planned braking cannot stay behind goes beyond it (docs/protocol.md, "An
+    /// emergency brake").
+    pub fn is_emergency_brake(&self, planned_decel_mps2: f64) -> bool {
+        matches!(
+            self.layer(),
+            Ok(Layer::Fallback | Layer::WatchdogFallback | Layer::StaleFallback)
+        ) && self.setpoint.accel_mps2 < planned_decel_mps2
+    }
 }
 
 /// A rejection: a typed reason and the offending field.

@@ -259,11 +259,7 @@ fn an_emergency_brake_reads_off_the_wire_from_every_fallback_layer() {
     let calm = example_request();
     let reads_as_emergency = |response: &PlanResponse| {
         let decided = response.outcome.as_decided().expect("a decision");
-        let fallback = matches!(
-            decided.layer(),
-            Ok(Layer::Fallback | Layer::WatchdogFallback | Layer::StaleFallback)
-        );
-        fallback && decided.setpoint.accel_mps2 < config.ego.max_decel_mps2
+        decided.is_emergency_brake(config.ego.max_decel_mps2)
     };
     for (request, expected) in [(emergency, true), (calm, false)] {
         let valid = request.validate(&config).expect("a valid request");
